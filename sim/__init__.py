@@ -1,0 +1,1 @@
+"""Simulation: vessel motion, the HDL-32E LiDAR, the GNSS receiver, seeded random streams."""

@@ -1,0 +1,64 @@
+"""GnssFix: what a GNSS receiver reports for one epoch, plus the simulator's exact truth."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SatelliteReport:
+    """One satellite as the receiver reports it (NMEA GSV/GSA)."""
+
+    prn: int
+    az_deg: float
+    el_deg: float
+    snr: float
+    used: bool
+
+
+@dataclass(frozen=True)
+class SatelliteTruth:
+    """Simulator truth for one tracked satellite: line of sight or not, and its range bias (m)."""
+
+    prn: int
+    los: bool
+    nlos: bool
+    bias_m: float
+
+
+@dataclass(frozen=True)
+class FixTruth:
+    """Exact truth of a fix; read only by the bench's metrics, never by matchers or filters."""
+
+    enu: np.ndarray
+    error: np.ndarray
+    sats: tuple[SatelliteTruth, ...] = ()
+
+
+@dataclass(frozen=True)
+class GnssFix:
+    """One receiver output epoch. quality follows NMEA GGA: 0 invalid, 1 GPS, 6 dead reckoning.
+
+    enu is the reported antenna position in the world's ENU frame (NaN when quality is 0);
+    lat/lon/alt are the same position in WGS-84 degrees and metres.
+    """
+
+    stamp: float
+    lat: float
+    lon: float
+    alt: float
+    enu: np.ndarray
+    quality: int
+    num_sats: int
+    hdop: float
+    vdop: float
+    pdop: float
+    sats: tuple[SatelliteReport, ...] = ()
+    utc: str = ""
+    truth: FixTruth | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def valid(self) -> bool:
+        return self.quality != 0

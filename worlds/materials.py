@@ -1,0 +1,41 @@
+"""Surface materials: LiDAR reflectivity at 905 nm and whether GNSS L1 signals reflect off them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Material:
+    """Optical and radio properties of a surface.
+
+    reflectivity: diffuse (Lambertian) reflectance at 905 nm, 0..1; scales LiDAR intensity.
+    gnss_reflective: True when L1 signals reflect specularly off it (concrete, stone, steel, glass),
+    so the GNSS model considers it for multipath; False for vegetation, soil and water surface here
+    (water reflections are handled as ground multipath, not as a facade).
+    water: True for the water surface, which returns almost no 905 nm light.
+    """
+
+    name: str
+    reflectivity: float
+    gnss_reflective: bool
+    water: bool = False
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.reflectivity <= 1.0:
+            raise ValueError(f"material {self.name!r}: reflectivity must be in [0, 1], got {self.reflectivity}")
+
+
+WATER = Material("water", reflectivity=0.02, gnss_reflective=False, water=True)
+CONCRETE = Material("concrete", reflectivity=0.35, gnss_reflective=True)
+GRANITE = Material("granite", reflectivity=0.30, gnss_reflective=True)
+BRICK = Material("brick", reflectivity=0.28, gnss_reflective=True)
+STEEL = Material("steel", reflectivity=0.22, gnss_reflective=True)
+GLASS = Material("glass", reflectivity=0.08, gnss_reflective=True)
+TIMBER = Material("timber", reflectivity=0.30, gnss_reflective=False)
+GRASS = Material("grass", reflectivity=0.45, gnss_reflective=False)
+SOIL = Material("soil", reflectivity=0.20, gnss_reflective=False)
+
+MATERIALS: dict[str, Material] = {
+    m.name: m for m in (WATER, CONCRETE, GRANITE, BRICK, STEEL, GLASS, TIMBER, GRASS, SOIL)
+}

@@ -1,0 +1,117 @@
+"""Matcher: the stateful scan-to-previous-good-scan interface shared by every method."""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+
+import numpy as np
+from pydantic import Field
+
+from matcher.cloud import Cloud
+from matcher.gate import GateParams, ScanGate
+from matcher.motion import ConstantVelocity, pose_to_xyzrpy
+from matcher.result import MatchResult
+from sim.scan import Scan
+
+
+class MatcherParams(GateParams):
+    """Settings common to all matchers (gate, range band, plausibility bounds)."""
+
+    min_range_m: float = Field(1.0, ge=0.0, description="ignore returns closer than this (the vessel itself; default 1 m)")
+    max_range_m: float = Field(100.0, gt=0.0, description="ignore returns farther than this (HDL-32E datasheet: 100 m)")
+    max_speed_mps: float = Field(10.0, gt=0.0, description="faster estimated motion is a failed match (default 10 m/s)")
+    max_yaw_rate_dps: float = Field(60.0, gt=0.0, description="faster estimated turning is a failed match (default 60 deg/s)")
+
+
+class Matcher(ABC):
+    """Registers each scan against the previous good scan (the reference).
+
+    Template: `register` sanitises the scan, applies the gate, handles the first scan, calls the
+    method's `_match`, checks plausibility and keeps the constant-velocity motion prior. A scan
+    that passes the gate becomes the new reference even when its match fails (tracking restarts
+    from it, with no motion prior); a gated scan never does."""
+
+    name: str = ""
+
+    def __init__(self, params: MatcherParams) -> None:
+        self.params = params
+        self.gate = ScanGate(params)
+        self.velocity = ConstantVelocity()
+        self._ref_stamp: float | None = None
+
+    def register(self, scan: Scan) -> MatchResult:
+        """Relative motion of `scan` against the previous good scan; never raises."""
+        start = time.perf_counter()
+        try:
+            result = self._register(scan)
+        except Exception as exc:  # a matcher must survive any scan: record the failure instead
+            self._forget_reference()
+            result = MatchResult.failure(f"matcher error: {type(exc).__name__}: {exc}")
+        result.seconds = time.perf_counter() - start
+        return result
+
+    def _register(self, scan: Scan) -> MatchResult:
+        p = self.params
+        cloud = Cloud.from_scan(scan, p.min_range_m, p.max_range_m)
+        n = len(cloud)
+        verdict = self.gate.check(n)
+        if not verdict.ok:
+            return MatchResult.failure(verdict.reason, n_points=n, gated=True)
+        if self._ref_stamp is None:
+            self._set_reference(cloud)
+            return MatchResult.failure("first scan", n_points=n)
+        dt = cloud.stamp - self._ref_stamp
+        if not dt > 0.0:
+            return MatchResult.failure(f"scan stamp {cloud.stamp} not after the reference's {self._ref_stamp}", n_points=n)
+        result = self._match(cloud, dt)
+        result.n_points = n
+        if result.ok:
+            reason = self._implausible(result.T, dt)
+            if reason:
+                result = MatchResult.failure(reason, n_points=n, **result.info)
+        if result.ok:
+            self.velocity.update(result.T, dt)
+        else:
+            self.velocity.reset()
+        self._commit(result.ok)
+        self._ref_stamp = cloud.stamp
+        return result
+
+    def _implausible(self, T: np.ndarray, dt: float) -> str:
+        p = self.params
+        xyzrpy = pose_to_xyzrpy(T)
+        speed = float(np.linalg.norm(T[:3, 3])) / dt
+        yaw_rate = abs(np.degrees(xyzrpy[5])) / dt
+        if not np.isfinite(T).all():
+            return "non-finite estimate"
+        if speed > p.max_speed_mps:
+            return f"implausible motion: {speed:.1f} m/s > max_speed_mps {p.max_speed_mps}"
+        if yaw_rate > p.max_yaw_rate_dps:
+            return f"implausible motion: yaw rate {yaw_rate:.1f} deg/s > max_yaw_rate_dps {p.max_yaw_rate_dps}"
+        return ""
+
+    def _set_reference(self, cloud: Cloud) -> None:
+        self._ref_stamp = cloud.stamp
+        self._start(cloud)
+
+    def _forget_reference(self) -> None:
+        self._ref_stamp = None
+        self.velocity.reset()
+        self._reset()
+
+    @abstractmethod
+    def _start(self, cloud: Cloud) -> None:
+        """Take `cloud` as the first reference."""
+
+    @abstractmethod
+    def _match(self, cloud: Cloud, dt: float) -> MatchResult:
+        """Match `cloud` (dt s after the reference) and keep what `_commit` needs to make it the reference."""
+
+    @abstractmethod
+    def _commit(self, ok: bool) -> None:
+        """Make the cloud just matched the reference (ok=False: its match failed; tracking restarts from it)."""
+
+    @abstractmethod
+    def _reset(self) -> None:
+        """Drop all state (after an internal error)."""

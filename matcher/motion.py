@@ -1,0 +1,105 @@
+"""Rigid-motion helpers: SE(3) exp/log, pose <-> [x, y, z, roll, pitch, yaw], constant-velocity de-skew."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+_SMALL_ANGLE = 1e-9
+
+
+def skew(w: np.ndarray) -> np.ndarray:
+    """3x3 cross-product matrix of a 3-vector."""
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def se3_exp(xi: np.ndarray) -> np.ndarray:
+    """4x4 pose of the twist xi = [v (m), w (rad)] integrated over unit time."""
+    v, w = np.asarray(xi[:3], float), np.asarray(xi[3:], float)
+    theta = float(np.linalg.norm(w))
+    K = skew(w)
+    if theta < _SMALL_ANGLE:
+        R, V = np.eye(3) + K, np.eye(3) + 0.5 * K
+    else:
+        A = np.sin(theta) / theta
+        B = (1.0 - np.cos(theta)) / theta**2
+        C = (theta - np.sin(theta)) / theta**3
+        R = np.eye(3) + A * K + B * (K @ K)
+        V = np.eye(3) + B * K + C * (K @ K)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, V @ v
+    return T
+
+
+def se3_log(T: np.ndarray) -> np.ndarray:
+    """Twist [v, w] whose unit-time exponential is the 4x4 pose T."""
+    w = Rotation.from_matrix(T[:3, :3]).as_rotvec()
+    theta = float(np.linalg.norm(w))
+    K = skew(w)
+    if theta < _SMALL_ANGLE:
+        V_inv = np.eye(3) - 0.5 * K
+    else:
+        half = 0.5 * theta
+        V_inv = np.eye(3) - 0.5 * K + (1.0 - half / np.tan(half)) / theta**2 * (K @ K)
+    return np.concatenate([V_inv @ T[:3, 3], w])
+
+
+def pose_to_xyzrpy(T: np.ndarray) -> np.ndarray:
+    """[x, y, z, roll, pitch, yaw] of a 4x4 pose (R = Rz(yaw) Ry(pitch) Rx(roll), as in ROS)."""
+    yaw, pitch, roll = Rotation.from_matrix(T[:3, :3]).as_euler("ZYX")
+    return np.array([*T[:3, 3], roll, pitch, yaw])
+
+
+def xyzrpy_to_pose(p: np.ndarray) -> np.ndarray:
+    """4x4 pose of [x, y, z, roll, pitch, yaw]."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("ZYX", [p[5], p[4], p[3]]).as_matrix()
+    T[:3, 3] = p[:3]
+    return T
+
+
+def planar(T: np.ndarray) -> np.ndarray:
+    """T with z, roll and pitch set to zero (keeps x, y, yaw): a boat's motion prior."""
+    p = pose_to_xyzrpy(T)
+    p[2:5] = 0.0
+    return xyzrpy_to_pose(p)
+
+
+def deskew(xyz: np.ndarray, t: np.ndarray, twist_per_s: np.ndarray | None) -> np.ndarray:
+    """Points measured in the sensor frame at their times t (s after the stamp), moved into the
+    frame at the stamp under constant body velocity `twist_per_s` = [v, w] (None: unchanged)."""
+    if twist_per_s is None or len(xyz) == 0:
+        return xyz
+    v, w = np.asarray(twist_per_s[:3], float), np.asarray(twist_per_s[3:], float)
+    rate = float(np.linalg.norm(w))
+    t = np.asarray(t, float)[:, None]
+    if rate < _SMALL_ANGLE:
+        return xyz + np.cross(w, xyz) * t + v * t
+    K = skew(w / rate)
+    theta = rate * t
+    s, c = np.sin(theta), 1.0 - np.cos(theta)
+    Kp = xyz @ K.T
+    KKp = Kp @ K.T
+    rotated = xyz + s * Kp + c * KKp
+    Kv, KKv = K @ v, K @ K @ v
+    translation = t * v + (c / rate) * Kv + (t - s / rate) * KKv
+    return rotated + translation
+
+
+class ConstantVelocity:
+    """Body twist per second from the last good relative motion; predicts the next one."""
+
+    def __init__(self) -> None:
+        self.twist_per_s: np.ndarray | None = None
+
+    def predict(self, dt: float) -> np.ndarray:
+        """Relative pose over dt seconds (identity when there is no estimate)."""
+        if self.twist_per_s is None:
+            return np.eye(4)
+        return se3_exp(self.twist_per_s * dt)
+
+    def update(self, T: np.ndarray, dt: float) -> None:
+        self.twist_per_s = se3_log(T) / dt
+
+    def reset(self) -> None:
+        self.twist_per_s = None

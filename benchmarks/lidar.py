@@ -1,0 +1,71 @@
+"""LiDAR throughput on charles_river: revolutions per second of the full HDL-32E pipeline (rays,
+ray cast, noise, intensity, drop-outs, timestamps) against a bare Open3D RaycastingScene cast of the
+same number of rays in the same run, their ratio, and peak memory. Prints medians over rounds.
+
+    .venv/bin/python benchmarks/lidar.py [--world charles_river] [--rounds 7] [--revs 40]
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+import numpy as np
+import open3d as o3d
+
+import worlds
+from sim import HDL32E, Trajectory
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--world", default="charles_river")
+    parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument("--revs", type=int, default=40, help="revolutions per round")
+    args = parser.parse_args()
+
+    t_load = time.perf_counter()
+    world = worlds.load(args.world)
+    traj = Trajectory(world)
+    lidar = HDL32E()
+    scene = world.raycasting_scene
+    load_s = time.perf_counter() - t_load
+    rss_world_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+    # revolutions spread along the whole route, so every kind of structure is in the mix
+    stamps = np.linspace(0.0, traj.duration - 1.0, args.rounds * args.revs).reshape(args.rounds, args.revs)
+    pose = traj.lidar_pose(stamps[0, 0])
+    dirs = lidar.ray_dir.reshape(-1, 3) @ pose[:3, :3].T
+    bare_rays = o3d.core.Tensor(
+        np.concatenate([np.broadcast_to(pose[:3, 3], dirs.shape), dirs], axis=1).astype(np.float32)
+    )
+    lidar.scan(world, traj, stamps[0, 0])  # warm up: self-occlusion mask, scene build
+    scene.cast_rays(bare_rays)
+
+    full_hz, bare_hz, points = [], [], []
+    for row in stamps:
+        start = time.perf_counter()
+        for t0 in row:
+            points.append(len(lidar.scan(world, traj, float(t0))))
+        full_hz.append(len(row) / (time.perf_counter() - start))
+        start = time.perf_counter()
+        for _ in row:
+            scene.cast_rays(bare_rays)
+        bare_hz.append(len(row) / (time.perf_counter() - start))
+    ratios = np.array(full_hz) / np.array(bare_hz)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+    n_rays = lidar.n_firings * 32
+    print(f"world {args.world}: {len(world.mesh.faces)} triangles, load {load_s:.2f} s")
+    print(f"rays per revolution: {n_rays}; rounds {args.rounds} x {args.revs} revolutions")
+    print(f"full pipeline:  median {np.median(full_hz):7.1f} rev/s  (min {min(full_hz):.1f}, max {max(full_hz):.1f})")
+    print(f"bare cast:      median {np.median(bare_hz):7.1f} rev/s  (min {min(bare_hz):.1f}, max {max(bare_hz):.1f})")
+    print(f"ratio full/bare (per round, same run): median {np.median(ratios):.2f}")
+    print(f"points per revolution: median {np.median(points):.0f}, p10 {np.percentile(points, 10):.0f}, "
+          f"p90 {np.percentile(points, 90):.0f}, max {max(points)}")
+    print(f"peak RSS: {peak_mb:.0f} MB (after loading the world: {rss_world_mb:.0f} MB)")
+
+
+if __name__ == "__main__":
+    main()

@@ -29,18 +29,21 @@ def covariance_from_hessian(
     rotation_scale_m: float,
     degenerate_ratio: float,
     degenerate_sigma_m: float,
+    is_rotation: tuple[bool, ...] = (False, False, False, True, True, True),
 ) -> tuple[np.ndarray, Degeneracy]:
-    """6x6 covariance of [tx, ty, tz, rx, ry, rz] from the Gauss-Newton Hessian H of the same
-    parameters (residual variance sigma2). Directions whose eigenvalue (rotations expressed as arc
-    length at rotation_scale_m) is below degenerate_ratio x the largest are unconstrained: their
-    standard deviation is raised to at least degenerate_sigma_m (rad x rotation_scale_m for angles)."""
-    D = np.diag([1.0, 1.0, 1.0] + [1.0 / rotation_scale_m] * 3)
+    """Covariance of the parameters (default [tx, ty, tz, rx, ry, rz]; `is_rotation` marks angles)
+    from the Gauss-Newton Hessian H of the same parameters (residual variance sigma2). Directions
+    whose eigenvalue (angles expressed as arc length at rotation_scale_m) is below degenerate_ratio x
+    the largest are unconstrained: their standard deviation is raised to at least degenerate_sigma_m
+    (rad x rotation_scale_m for angles)."""
+    D = np.diag([1.0 / rotation_scale_m if rot else 1.0 for rot in is_rotation])
+    n = len(is_rotation)
     Hs = D @ H @ D
     Hs = 0.5 * (Hs + Hs.T)
     lam, V = np.linalg.eigh(Hs)
     top = max(float(lam[-1]), 0.0)
-    degenerate = lam <= degenerate_ratio * top if top > 0 else np.ones(6, bool)
-    var = np.full(6, degenerate_sigma_m**2)
+    degenerate = lam <= degenerate_ratio * top if top > 0 else np.ones(n, bool)
+    var = np.full(n, degenerate_sigma_m**2)
     positive = lam > 0
     var[positive] = sigma2 / lam[positive]
     var[degenerate] = np.maximum(var[degenerate], degenerate_sigma_m**2)

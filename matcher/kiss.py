@@ -17,7 +17,7 @@ from matcher.result import MatchResult
 class KissIcpParams(MatcherParams):
     """Settings of the `kiss_icp` matcher (passed to kiss-icp's KISSConfig)."""
 
-    voxel_m: float = Field(1.0, gt=0.0, description="kiss-icp mapping.voxel_size (default 1.0 m = max_range/100, kiss-icp's rule)")
+    X
     max_points_per_voxel: int = Field(20, ge=1, description="kiss-icp mapping.max_points_per_voxel (default 20)")
     deskew: bool = Field(True, description="kiss-icp data.deskew from the per-point time field (default on)")
     max_iterations: int = Field(500, ge=1, description="kiss-icp registration.max_num_iterations (default 500)")

@@ -1,0 +1,199 @@
+"""pcl6d: the field study's Method 1, a PCL-style 6-DoF pipeline on Open3D.
+
+Voxel filter, statistical outlier removal, normals; FPFH features with mutual-nearest-neighbour
+correspondences and RANSAC pre-alignment (edge-length and distance checkers; FGR as an option);
+point-to-plane ICP with Tukey's robust kernel (Open3D's generalized ICP as an option)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import open3d as o3d
+from pydantic import Field
+from scipy.spatial import cKDTree
+
+from matcher.base import Matcher, MatcherParams
+from matcher.cloud import Cloud
+from matcher.covariance import covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
+from matcher.motion import deskew, planar, se3_log
+from matcher.pointplane import point_to_plane_fit
+from matcher.result import MatchResult
+
+reg = o3d.pipelines.registration
+
+
+class Pcl6dParams(MatcherParams):
+    """Settings of the `pcl6d` matcher."""
+
+    voxel_m: float = Field(0.4, gt=0.0, description="voxel filter leaf size for ICP (default 0.4 m)")
+    sor_neighbors: int = Field(16, ge=2, description="statistical outlier removal: neighbours (default 16)")
+    sor_std_ratio: float = Field(2.5, gt=0.0, description="statistical outlier removal: std. dev. multiplier (default 2.5)")
+    normal_radius_m: float = Field(1.5, gt=0.0, description="normal estimation radius (default 1.5 m)")
+    normal_max_nn: int = Field(20, ge=3, description="normal estimation max neighbours (default 20)")
+    prealign: Literal["ransac", "fgr", "none"] = Field("ransac", description="global pre-alignment method (default ransac)")
+    prealign_voxel_m: float = Field(1.0, gt=0.0, description="voxel size of the FPFH pre-alignment clouds (default 1 m)")
+    fpfh_radius_m: float = Field(5.0, gt=0.0, description="FPFH feature radius (default 5 m)")
+    fpfh_max_nn: int = Field(100, ge=5, description="FPFH max neighbours (default 100)")
+    mutual_filter: bool = Field(True, description="keep only mutual nearest-neighbour feature matches (default on)")
+    ransac_distance_m: float = Field(1.5, gt=0.0, description="RANSAC inlier distance and distance checker (default 1.5 m)")
+    edge_length_similarity: float = Field(0.9, gt=0.0, lt=1.0, description="edge-length checker similarity (default 0.9)")
+    ransac_max_iterations: int = Field(50000, ge=1, description="RANSAC iterations (default 50000)")
+    ransac_confidence: float = Field(0.999, gt=0.0, lt=1.0, description="RANSAC confidence (default 0.999)")
+    planar_initial_guess: bool = Field(True, description="keep only x, y, yaw of the pre-alignment as ICP's start (boats stay level; default on)")
+    skip_prealign_max_dt_s: float = Field(
+        0.25, ge=0.0, description="skip pre-alignment when the scans are at most this far apart and a motion prior exists (default 0.25 s)"
+    )
+    skip_icp_min_fitness: float | None = Field(
+        None, gt=0.0, le=1.0, description="skip ICP when pre-alignment inlier share reaches this (and RMSE limit holds); None = always run ICP"
+    )
+    skip_icp_max_rmse_m: float = Field(0.1, gt=0.0, description="pre-alignment inlier RMSE limit for skipping ICP (default 0.1 m)")
+    icp: Literal["point_to_plane", "gicp"] = Field("point_to_plane", description="fine alignment (default point_to_plane)")
+    icp_max_correspondence_m: float = Field(1.0, gt=0.0, description="ICP max pair distance (default 1 m)")
+    tukey_k_m: float = Field(0.15, gt=0.0, description="Tukey robust-kernel width; larger residuals are outliers (default 0.15 m)")
+    icp_max_iterations: int = Field(30, ge=1, description="ICP iterations (default 30)")
+    deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
+    min_fitness: float = Field(0.3, ge=0.0, le=1.0, description="fail when fewer source points find a partner (default 0.3)")
+    degenerate_ratio: float = Field(1e-2, gt=0.0, lt=1.0, description="Hessian eigenvalue / largest below which a direction is degenerate (default 0.01)")
+    degenerate_sigma_m: float = Field(1.0, gt=0.0, description="minimum std. dev. along a degenerate direction (m; default 1)")
+
+
+class _Prepared:
+    """A de-skewed, filtered scan with normals; FPFH features on demand."""
+
+    def __init__(self, cloud: Cloud, twist: np.ndarray | None, p: Pcl6dParams) -> None:
+        self.cloud, self.twist, self.p = cloud, twist, p
+        self.xyz_deskewed = deskew(cloud.xyz, cloud.time, twist)
+        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(self.xyz_deskewed)).voxel_down_sample(p.voxel_m)
+        if len(pcd.points) > p.sor_neighbors:
+            pcd, _ = pcd.remove_statistical_outlier(p.sor_neighbors, p.sor_std_ratio)
+        pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=p.normal_radius_m, max_nn=p.normal_max_nn))
+        pcd.orient_normals_towards_camera_location(np.zeros(3))
+        self.pcd = pcd
+        self.points = np.asarray(pcd.points)
+        self.normals = np.asarray(pcd.normals)
+        self.tree = cKDTree(self.points)
+        self.median_range = float(np.median(np.linalg.norm(self.points, axis=1))) if len(self.points) else 1.0
+        self._features: tuple[o3d.geometry.PointCloud, np.ndarray] | None = None
+
+    def features(self) -> tuple[o3d.geometry.PointCloud, np.ndarray]:
+        """Coarse cloud for pre-alignment and its FPFH descriptors (N, 33)."""
+        if self._features is None:
+            p = self.p
+            coarse = self.pcd.voxel_down_sample(p.prealign_voxel_m)
+            coarse.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=2.0 * p.prealign_voxel_m, max_nn=30))
+            fpfh = reg.compute_fpfh_feature(coarse, o3d.geometry.KDTreeSearchParamHybrid(radius=p.fpfh_radius_m, max_nn=p.fpfh_max_nn))
+            self._features = (coarse, np.asarray(fpfh.data).T.copy())
+        return self._features
+
+
+class Pcl6d(Matcher):
+    """Method 1: filter, FPFH + RANSAC pre-alignment, robust point-to-plane ICP."""
+
+    name = "pcl6d"
+
+    def __init__(self, params: Pcl6dParams) -> None:
+        super().__init__(params)
+        self.p = params
+        self._ref: _Prepared | None = None
+        self._cur: _Prepared | None = None
+
+    def _start(self, cloud: Cloud) -> None:
+        self._ref = _Prepared(cloud, None, self.p)
+
+    def _reset(self) -> None:
+        self._ref = self._cur = None
+
+    def _commit(self, ok: bool) -> None:
+        self._ref, self._cur = self._cur, None
+
+    def _prealign(self, src: _Prepared, tgt: _Prepared) -> tuple[np.ndarray, dict]:
+        """Global alignment from FPFH correspondences; (T, diagnostics)."""
+        p = self.p
+        src_pcd, src_f = src.features()
+        tgt_pcd, tgt_f = tgt.features()
+        if len(src_f) < 3 or len(tgt_f) < 3:
+            return np.eye(4), {"prealign_putative": 0, "prealign_rejected_share": 1.0, "prealign_fitness": 0.0}
+        _, to_tgt = cKDTree(tgt_f).query(src_f)
+        pairs = np.stack([np.arange(len(src_f)), to_tgt], axis=1)
+        if p.mutual_filter:
+            _, to_src = cKDTree(src_f).query(tgt_f)
+            pairs = pairs[to_src[to_tgt] == np.arange(len(src_f))]
+        corres = o3d.utility.Vector2iVector(pairs.astype(np.int32))
+        if p.prealign == "fgr":
+            res = reg.registration_fgr_based_on_correspondence(
+                src_pcd, tgt_pcd, corres, reg.FastGlobalRegistrationOption(maximum_correspondence_distance=p.ransac_distance_m)
+            )
+            inliers = reg.evaluate_registration(src_pcd, tgt_pcd, p.ransac_distance_m, res.transformation)
+            fitness, rmse, n_in = inliers.fitness, inliers.inlier_rmse, len(inliers.correspondence_set)
+        else:
+            res = reg.registration_ransac_based_on_correspondence(
+                src_pcd, tgt_pcd, corres, p.ransac_distance_m,
+                reg.TransformationEstimationPointToPoint(False), 3,
+                [reg.CorrespondenceCheckerBasedOnEdgeLength(p.edge_length_similarity),
+                 reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m)],
+                reg.RANSACConvergenceCriteria(p.ransac_max_iterations, p.ransac_confidence),
+            )
+            fitness, rmse, n_in = res.fitness, res.inlier_rmse, len(res.correspondence_set)
+        rejected = 1.0 - min(n_in, len(pairs)) / max(len(pairs), 1)
+        info = {"prealign_putative": int(len(pairs)), "prealign_rejected_share": float(rejected),
+                "prealign_fitness": float(fitness), "prealign_rmse": float(rmse)}
+        return np.asarray(res.transformation), info
+
+    def _icp(self, src: _Prepared, tgt: _Prepared, init: np.ndarray) -> np.ndarray:
+        p = self.p
+        criteria = reg.ICPConvergenceCriteria(1e-6, 1e-6, p.icp_max_iterations)
+        if p.icp == "gicp":
+            est = reg.TransformationEstimationForGeneralizedICP(reg.TukeyLoss(k=p.tukey_k_m))
+            res = reg.registration_generalized_icp(src.pcd, tgt.pcd, p.icp_max_correspondence_m, init, est, criteria)
+        else:
+            est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=p.tukey_k_m))
+            res = reg.registration_icp(src.pcd, tgt.pcd, p.icp_max_correspondence_m, init, est, criteria)
+        return np.asarray(res.transformation)
+
+    def _align(self, src: _Prepared, tgt: _Prepared, prior: np.ndarray, have_prior: bool, dt: float) -> tuple[np.ndarray, dict]:
+        p = self.p
+        use_prior = have_prior and dt <= p.skip_prealign_max_dt_s
+        info: dict = {"prealigned": False, "icp_skipped": False}
+        if use_prior or p.prealign == "none":
+            T = self._icp(src, tgt, prior)
+            fit = point_to_plane_fit(src.points, T, tgt.points, tgt.normals, tgt.tree, p.icp_max_correspondence_m, p.tukey_k_m)
+            if fit.fitness >= p.min_fitness or p.prealign == "none":
+                return T, info
+            info["prior_failed"] = True  # the motion prior led ICP astray: fall back to global pre-alignment
+        T0, pre = self._prealign(src, tgt)
+        info.update(pre, prealigned=True)
+        init = planar(T0) if p.planar_initial_guess else T0
+        if p.skip_icp_min_fitness is not None and pre["prealign_fitness"] >= p.skip_icp_min_fitness and pre["prealign_rmse"] <= p.skip_icp_max_rmse_m:
+            info["icp_skipped"] = True
+            return T0, info
+        return self._icp(src, tgt, init), info
+
+    def _match(self, cloud: Cloud, dt: float) -> MatchResult:
+        p = self.p
+        have_prior = self.velocity.twist_per_s is not None
+        T = self.velocity.predict(dt)
+        twist = self.velocity.twist_per_s
+        ref = self._ref
+        for _ in range(p.deskew_iterations):
+            cur = _Prepared(cloud, twist, p)
+            self._cur = cur
+            if len(cur.points) < 10 or len(ref.points) < 10:
+                return MatchResult.failure("too few points after filtering")
+            T, info = self._align(cur, ref, T, have_prior, dt)
+            have_prior = True
+            new_twist = se3_log(T) / dt
+            if ref.twist is None:  # the first reference was never de-skewed: use this estimate
+                ref = _Prepared(ref.cloud, new_twist, p)
+            if twist is not None and np.abs((new_twist - twist) * dt).max() < 1e-3:
+                break
+            twist = new_twist
+        self._ref = ref
+        fit = point_to_plane_fit(cur.points, T, ref.points, ref.normals, ref.tree, p.icp_max_correspondence_m, p.tukey_k_m)
+        info.update(fitness=fit.fitness, outlier_share=fit.outlier_share, points_used=len(cur.points), sigma2=fit.sigma2)
+        if fit.fitness < p.min_fitness:
+            return MatchResult.failure(f"fitness {fit.fitness:.2f} < min_fitness {p.min_fitness}", **info)
+        cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, cur.median_range, p.degenerate_ratio, p.degenerate_sigma_m)
+        cov = to_xyzrpy(cov_param, left_perturbation_jacobian(T))
+        info.update(degeneracy.as_info())
+        return MatchResult(T=T, ok=True, cov=cov, n_points=0, seconds=0.0, info=info)

@@ -17,7 +17,9 @@ from matcher.result import MatchResult
 class KissIcpParams(MatcherParams):
     """Settings of the `kiss_icp` matcher (passed to kiss-icp's KISSConfig)."""
 
-    X
+    voxel_m: float = Field(
+        0.5, gt=0.0, description="kiss-icp mapping.voxel_size (default 0.5 m; kiss-icp's max_range/100 = 1 m sticks on smooth canal walls)"
+    )
     max_points_per_voxel: int = Field(20, ge=1, description="kiss-icp mapping.max_points_per_voxel (default 20)")
     deskew: bool = Field(True, description="kiss-icp data.deskew from the per-point time field (default on)")
     max_iterations: int = Field(500, ge=1, description="kiss-icp registration.max_num_iterations (default 500)")

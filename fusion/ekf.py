@@ -1,0 +1,177 @@
+"""ekf: extended Kalman filter on (x, y, yaw, body velocities) with a stochastic clone for odometry.
+
+A match is a relative measurement between the pose at the matcher's reference scan (a cloned copy
+of the state kept since then) and the pose now, with the matcher's full covariance rotated into
+the state by the Jacobian: an along-canal variance leaves that direction to GPS. Between matches,
+and when the matcher fails, the pose follows a constant-velocity model whose covariance grows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import Field
+from scipy.stats import chi2
+
+from fusion.bootstrap import Alignment
+from fusion.estimator import Estimator
+from fusion.geometry import between, compose, drot2, rot2, wrap
+from fusion.monitors import Monitor
+from fusion.observation import FixObservation
+from fusion.params import EstimatorParams
+
+X, Y, TH, V, VL, W, CX, CY, CTH = range(9)
+POSE, CLONE = slice(0, 3), slice(6, 9)
+
+
+class EkfParams(EstimatorParams):
+    """EKF parameters on top of the shared ones (defaults in brackets).
+
+    accel_sigma / lateral_accel_sigma: white-noise acceleration density of the forward and sideways
+        body velocity, m/s^2/sqrt(Hz) [0.3, 0.2]; yaw_accel_sigma_deg: of the yaw rate, deg/s^2/sqrt(Hz)
+        [3.0]; position_walk_sigma: extra position random walk, m/sqrt(s) [0.02].
+    odom_gate_prob: chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a
+        matcher failure [0.999999, gate at 30.7].
+    """
+
+    monitor: str = "combined"
+    accel_sigma: float = Field(0.3, gt=0)
+    lateral_accel_sigma: float = Field(0.2, gt=0)
+    yaw_accel_sigma_deg: float = Field(3.0, gt=0)
+    position_walk_sigma: float = Field(0.02, ge=0)
+    odom_gate_prob: float = Field(0.999999, gt=0.5, lt=1.0)
+
+
+class Ekf(Estimator):
+    """EKF over [x, y, yaw, v_forward, v_left, yaw_rate, clone_x, clone_y, clone_yaw]."""
+
+    name = "ekf"
+
+    def __init__(self, params: EkfParams, monitor: Monitor) -> None:
+        super().__init__(params, monitor)
+        self.params: EkfParams = params
+        self.x = np.zeros(9)
+        self.P = np.eye(9)
+        self._init = False
+        self._odom_gate = float(chi2.ppf(params.odom_gate_prob, 3))
+
+    @property
+    def initialized(self) -> bool:
+        return self._init
+
+    def _initialise(self, alignment: Alignment) -> None:
+        self.x[:] = 0.0
+        self.x[POSE] = alignment.pose
+        self.P = np.zeros((9, 9))
+        self.P[POSE, POSE] = alignment.cov
+        self.P[V, V] = self.P[VL, VL] = 1.0
+        self.P[W, W] = math.radians(10.0) ** 2
+        last = self.odometry.last
+        now = self.odometry.pose_at(alignment.stamp)
+        velocity = self.odometry.velocity()
+        if velocity is not None:
+            self.x[V:W + 1] = velocity
+            self.P[V, V] = self.P[VL, VL] = 0.25
+        clone = alignment.pose
+        if last is not None and now is not None and last.stamp == self._ref_stamp:
+            clone = compose(alignment.pose, between(now, last.pose))
+        self.x[CLONE] = clone
+        self.P[CLONE, CLONE] = alignment.cov
+        self.P[CLONE, POSE] = self.P[POSE, CLONE] = alignment.cov
+        self._init = True
+
+    def _predict(self, stamp: float) -> None:
+        dt = stamp - self.stamp
+        if dt <= 0.0:
+            return
+        p = self.params
+        th, v, vl = self.x[TH], self.x[V], self.x[VL]
+        c, s = math.cos(th), math.sin(th)
+        F = np.eye(9)
+        F[X, TH], F[X, V], F[X, VL] = (-v * s - vl * c) * dt, c * dt, -s * dt
+        F[Y, TH], F[Y, V], F[Y, VL] = (v * c - vl * s) * dt, s * dt, c * dt
+        F[TH, W] = dt
+        self.x[X] += (v * c - vl * s) * dt
+        self.x[Y] += (v * s + vl * c) * dt
+        self.x[TH] = wrap(th + self.x[W] * dt)
+        Q = np.zeros((9, 9))
+        q_acc = np.array([p.accel_sigma**2, p.lateral_accel_sigma**2, math.radians(p.yaw_accel_sigma_deg) ** 2])
+        # white acceleration integrated over dt: velocity dt, position-velocity dt^2/2, position dt^3/3
+        G = np.zeros((3, 3))
+        G[:2, :2] = rot2(th)
+        G[2, 2] = 1.0
+        Qvv = np.diag(q_acc) * dt
+        Qpv = G @ np.diag(q_acc) * dt**2 / 2.0
+        Qpp = G @ np.diag(q_acc) @ G.T * dt**3 / 3.0
+        Q[POSE, POSE] = Qpp + np.diag([p.position_walk_sigma**2 * dt] * 2 + [0.0])
+        Q[POSE, 3:6] = Qpv
+        Q[3:6, POSE] = Qpv.T
+        Q[3:6, 3:6] = Qvv
+        self.P = F @ self.P @ F.T + Q
+
+    def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
+        S = H @ self.P @ H.T + R
+        K = np.linalg.solve(S, H @ self.P).T
+        self.x += K @ y
+        self.x[TH] = wrap(self.x[TH])
+        self.x[CTH] = wrap(self.x[CTH])
+        A = np.eye(9) - K @ H
+        self.P = A @ self.P @ A.T + K @ R @ K.T
+        self.P = 0.5 * (self.P + self.P.T)
+
+    def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:
+        if not self._init:
+            return ""
+        cth = self.x[CTH]
+        r_t = rot2(cth).T
+        d = self.x[X:Y + 1] - self.x[CX:CY + 1]
+        h = np.r_[r_t @ d, wrap(self.x[TH] - cth)]
+        H = np.zeros((3, 9))
+        H[:2, X:Y + 1] = r_t
+        H[:2, CX:CY + 1] = -r_t
+        H[:2, CTH] = drot2(cth).T @ d
+        H[2, TH], H[2, CTH] = 1.0, -1.0
+        y = step - h
+        y[2] = wrap(y[2])
+        S = H @ self.P @ H.T + step_cov
+        nis = float(y @ np.linalg.solve(S, y))
+        if nis > self._odom_gate:
+            return f"odometry rejected: innovation {nis:.1f} > gate {self._odom_gate:.1f}"
+        self._update(y, H, step_cov)
+        self._reanchor(stamp)
+        return ""
+
+    def _reanchor(self, stamp: float) -> None:
+        if not self._init:
+            return
+        A = np.eye(9)
+        A[CLONE, :] = 0.0
+        A[CLONE, POSE] = np.eye(3)
+        self.x = A @ self.x
+        self.P = A @ self.P @ A.T
+
+    def _gps_model(self) -> tuple[np.ndarray, np.ndarray]:
+        th = self.x[TH]
+        h = self.x[X:Y + 1] + rot2(th) @ self.lever
+        H = np.zeros((2, 9))
+        H[:, X:Y + 1] = np.eye(2)
+        H[:, TH] = drot2(th) @ self.lever
+        return h, H
+
+    def _update_fix(self, obs: FixObservation) -> None:
+        h, H = self._gps_model()
+        self._update(obs.xy - h, H, obs.cov)
+
+    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray]:
+        h, H = self._gps_model()
+        return h, H @ self.P @ H.T
+
+    def _heading(self) -> tuple[float, float]:
+        return float(self.x[TH]), float(self.P[TH, TH])
+
+    def _pose3(self) -> np.ndarray:
+        return self.x[POSE].copy()
+
+    def _cov3(self) -> np.ndarray:
+        return self.P[POSE, POSE].copy()

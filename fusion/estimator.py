@@ -1,0 +1,226 @@
+"""Estimator base: input screening, time order, odometry conversion, monitor plumbing, recorded events."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fusion.bootstrap import Alignment, Bootstrap
+from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix
+from fusion.monitors import FixContext, Monitor
+from fusion.observation import FixObservation, screen
+from fusion.odometry import OdometryTrack
+from fusion.params import EstimatorParams
+from fusion.verdict import Event, Verdict
+from matcher.result import MatchResult
+from sim.gnss_fix import GnssFix
+
+HEIGHT_WALK_M2_PER_S = 0.01
+"""Random-walk rate of base_link height (water level, waves) in the height filter."""
+
+
+class Estimator:
+    """Fed fixes and matches in time order; `.pose` is world<-base_link now, `.cov` the 3x3
+    covariance of (x, y, yaw). Inputs it cannot use are recorded in `.events`, never raised."""
+
+    name = "estimator"
+
+    def __init__(self, params: EstimatorParams, monitor: Monitor) -> None:
+        self.params = params
+        self.monitor = monitor
+        self.mount = np.asarray(params.mount, dtype=float)
+        self.antenna = np.asarray(params.antenna, dtype=float)
+        self.lever = self.antenna[:2].copy()
+        self.events: list[Event] = []
+        self.stamp = -math.inf
+        self.odometry = OdometryTrack()
+        self._bootstrap = Bootstrap(params.init_baseline_m, params.init_min_fixes, params.init_max_hdop, self.lever)
+        self._height = 0.0
+        self._height_var = math.inf
+        sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)
+        self._default_odom_cov = np.diag([sxy**2, sxy**2, sxy**2, syaw**2, syaw**2, syaw**2])
+        self._ref_stamp: float | None = None
+
+    # ---- public API -------------------------------------------------------------------------
+    @property
+    def initialized(self) -> bool:
+        raise NotImplementedError
+
+    @property
+    def pose(self) -> np.ndarray:
+        """4x4 world<-base_link at the latest input (NaN before initialisation)."""
+        if not self.initialized:
+            return np.full((4, 4), np.nan)
+        x, y, yaw = self._pose3()
+        return pose_matrix(x, y, self._height - self.antenna[2] if math.isfinite(self._height_var) else 0.0, yaw)
+
+    @property
+    def cov(self) -> np.ndarray:
+        """3x3 covariance of (x, y, yaw) (infinite before initialisation)."""
+        if not self.initialized:
+            return np.full((3, 3), np.inf)
+        return self._cov3()
+
+    def add_fix(self, fix: GnssFix) -> Verdict:
+        """Use one receiver output; return the monitor's verdict (untrusted fixes are not used)."""
+        stamp = getattr(fix, "stamp", math.nan)
+        refused = self._refuse_stamp(stamp, "fix")
+        if refused:
+            return Verdict(False, math.nan, refused)
+        obs, why = screen(fix, self.params.uere_m, self.params.accept_dead_reckoning)
+        self._advance(float(stamp))
+        if obs is None:
+            if why.startswith("bad field") or why.startswith("unsupported"):
+                self.events.append(Event(float(stamp), "fix", why))
+            self.monitor.note_outage(float(stamp))
+            return Verdict(False, math.inf if "dead reckoning" in why else math.nan, why)
+        if not self.initialized:
+            self._try_initialise(obs)
+        ctx = self._context()
+        verdict = self.monitor.check(obs, ctx)
+        self.monitor.commit(obs, verdict)
+        self._use_fix(obs, verdict)
+        return verdict
+
+    def _use_fix(self, obs: FixObservation, verdict: Verdict) -> None:
+        """Update with a fix the monitor trusts (gps_only overrides: it takes every fix)."""
+        if verdict.trusted and self.initialized:
+            self._update_fix(obs)
+            self._update_height(obs)
+
+    def add_match(self, scan_stamp: float, result: MatchResult) -> None:
+        """Use one scan's match: its motion since the matcher's reference scan, in the lidar frame."""
+        refused = self._refuse_stamp(scan_stamp, "match")
+        if refused:
+            return
+        stamp = float(scan_stamp)
+        self._advance(stamp)
+        ok = bool(getattr(result, "ok", False))
+        info = getattr(result, "info", None) or {}
+        if not ok:
+            reason = str(info.get("reason", "no reason given"))
+            self.events.append(Event(stamp, "match", f"matcher '{self.params.matcher}' failed: {reason}"))
+            if not info.get("gated", False):
+                self._new_reference(stamp)  # the matcher restarts tracking from this scan
+            return
+        step, step_cov, why = self._planar_step(result)
+        if self._ref_stamp is None:
+            why = why or "no reference scan seen before this match"
+        if why:
+            self.events.append(Event(stamp, "match", why))
+            self._new_reference(stamp)
+            return
+        rejected = self._odometry(stamp, step, step_cov)
+        if rejected:
+            self.events.append(Event(stamp, "match", rejected))
+            self._new_reference(stamp)
+            return
+        self.odometry.add(stamp, step, step_cov)
+        self._ref_stamp = stamp
+        if not self.initialized and self.params.initial_pose is not None:
+            self._initialise_from_params(stamp)
+
+    # ---- shared machinery -------------------------------------------------------------------
+    def _refuse_stamp(self, stamp, source: str) -> str:
+        try:
+            t = float(stamp)
+        except (TypeError, ValueError):
+            t = math.nan
+        if not math.isfinite(t):
+            reason = f"bad field 'stamp'={stamp!r}"
+        elif t < self.stamp:
+            reason = f"out of order: stamp {t:.3f} before the latest input {self.stamp:.3f}"
+        else:
+            return ""
+        self.events.append(Event(t if math.isfinite(t) else self.stamp, source, reason))
+        return reason
+
+    def _planar_step(self, result: MatchResult) -> tuple[np.ndarray, np.ndarray, str]:
+        T = np.asarray(getattr(result, "T", None), dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            return np.zeros(3), np.zeros((3, 3)), "match T is not a finite 4x4 matrix"
+        cov = getattr(result, "cov", None)
+        cov = self._default_odom_cov if cov is None else np.asarray(cov, dtype=float)
+        if cov.shape != (6, 6) or not is_psd(cov):
+            return np.zeros(3), np.zeros((3, 3)), "match covariance is not a finite 6x6 PSD matrix"
+        T_base, cov_base = lidar_to_base(T, cov, self.mount)
+        step, step_cov = planar(T_base, cov_base)
+        step_cov = 0.5 * (step_cov + step_cov.T) + np.diag([1e-10, 1e-10, 1e-12])
+        return step, step_cov, ""
+
+    def _new_reference(self, stamp: float) -> None:
+        self._ref_stamp = stamp
+        self.odometry.anchor(stamp)
+        self._reanchor(stamp)
+        if not self.initialized and self.params.initial_pose is not None:
+            self._initialise_from_params(stamp)
+
+    def _try_initialise(self, obs: FixObservation) -> None:
+        if self.params.initial_pose is not None:
+            self._initialise_from_params(obs.stamp)
+            return
+        alignment = self._bootstrap.add(obs, self.odometry)
+        if alignment is not None:
+            self._initialise(alignment)
+
+    def _initialise_from_params(self, stamp: float) -> None:
+        (x, y, yaw_deg), (sigma_m, sigma_deg) = self.params.initial_pose, self.params.initial_sigma
+        cov = np.diag([sigma_m**2, sigma_m**2, math.radians(sigma_deg) ** 2])
+        self._initialise(Alignment(stamp, np.array([x, y, math.radians(yaw_deg)]), cov))
+
+    def _update_height(self, obs: FixObservation) -> None:
+        if not math.isfinite(self._height_var):
+            self._height, self._height_var = obs.z, obs.z_var
+            self._height_stamp = obs.stamp
+            return
+        var = self._height_var + HEIGHT_WALK_M2_PER_S * (obs.stamp - self._height_stamp)
+        gain = var / (var + obs.z_var)
+        self._height += gain * (obs.z - self._height)
+        self._height_var = (1.0 - gain) * var
+        self._height_stamp = obs.stamp
+
+    def _context(self) -> FixContext:
+        predicted = self._predicted_antenna() if self.initialized else None
+        heading = self._heading() if self.initialized else None
+        return FixContext(
+            predicted=predicted,
+            yaw=None if heading is None else heading[0],
+            yaw_var=None if heading is None else heading[1],
+            lever=self.lever,
+            odometry=self.odometry,
+        )
+
+    def _advance(self, stamp: float) -> None:
+        if self.initialized:
+            self._predict(stamp)
+        self.stamp = stamp
+
+    # ---- what each estimator implements -----------------------------------------------------
+    def _initialise(self, alignment: Alignment) -> None:
+        raise NotImplementedError
+
+    def _predict(self, stamp: float) -> None:
+        raise NotImplementedError
+
+    def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:
+        """Use a planar base_link step from the reference scan; return a reason if it is refused."""
+        raise NotImplementedError
+
+    def _reanchor(self, stamp: float) -> None:
+        """The matcher's reference moved to this scan without a usable step."""
+
+    def _update_fix(self, obs: FixObservation) -> None:
+        raise NotImplementedError
+
+    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray] | None:
+        raise NotImplementedError
+
+    def _heading(self) -> tuple[float, float] | None:
+        raise NotImplementedError
+
+    def _pose3(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _cov3(self) -> np.ndarray:
+        raise NotImplementedError

@@ -1,0 +1,54 @@
+"""GPS integrity monitors: hdop (baseline), nis, consistency, combined, none."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ValidationError
+
+from fusion.monitors.base import FixContext, Monitor
+from fusion.monitors.combined import CombinedMonitor, CombinedParams
+from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
+from fusion.monitors.hdop import HdopMonitor, HdopParams
+from fusion.monitors.nis import NisMonitor, NisParams
+from fusion.monitors.none import NoMonitor, NoneParams
+
+_MONITORS: dict[str, tuple[type[Monitor], type[BaseModel]]] = {
+    "hdop": (HdopMonitor, HdopParams),
+    "nis": (NisMonitor, NisParams),
+    "consistency": (ConsistencyMonitor, ConsistencyParams),
+    "combined": (CombinedMonitor, CombinedParams),
+    "none": (NoMonitor, NoneParams),
+}
+
+
+def available() -> list[str]:
+    """Names of the monitors create() knows."""
+    return sorted(_MONITORS)
+
+
+def validate_params(model: type[BaseModel], params: dict, what: str) -> BaseModel:
+    """Validate params with a pydantic model; a bad key or value is a one-line ValueError naming it."""
+    try:
+        return model(**params)
+    except ValidationError as err:
+        first = err.errors()[0]
+        key = ".".join(str(p) for p in first["loc"]) or "?"
+        raise ValueError(f"{what}: parameter '{key}': {first['msg']}") from None
+
+
+def create(name: str, **params) -> Monitor:
+    """A fresh monitor by name; unknown names and parameters raise ValueError naming them."""
+    if name not in _MONITORS:
+        raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())})")
+    cls, model = _MONITORS[name]
+    p = validate_params(model, params, f"monitor '{name}'")
+    if name == "combined":
+        if "combined" in p.members:
+            raise ValueError("monitor 'combined': parameter 'members' cannot contain 'combined'")
+        unknown = set(p.member_params) - set(p.members)
+        if unknown:
+            raise ValueError(f"monitor 'combined': parameter 'member_params' names a non-member '{sorted(unknown)[0]}'")
+        return CombinedMonitor(p, [create(m, **p.member_params.get(m, {})) for m in p.members])
+    return cls(p)
+
+
+__all__ = ["FixContext", "Monitor", "available", "create", "validate_params"]

@@ -1,0 +1,42 @@
+"""Monitor interface: judge each fix from what the filter and the odometry say about it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fusion.observation import FixObservation
+from fusion.odometry import OdometryTrack
+from fusion.verdict import Verdict
+
+
+@dataclass(frozen=True)
+class FixContext:
+    """What the host estimator knows when a fix arrives.
+
+    predicted: antenna (x, y) predicted by the filter and its 2x2 covariance (None before it is
+    initialised); yaw/yaw_var: the filter's heading and its variance (None before initialisation);
+    lever: antenna (x, y) on base_link; odometry: the scan-matching chain.
+    """
+
+    predicted: tuple[np.ndarray, np.ndarray] | None
+    yaw: float | None
+    yaw_var: float | None
+    lever: np.ndarray
+    odometry: OdometryTrack
+
+
+class Monitor:
+    """A GPS integrity monitor. check() has no side effects; commit() records the final decision."""
+
+    name = "monitor"
+
+    def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
+        raise NotImplementedError
+
+    def commit(self, obs: FixObservation, verdict: Verdict) -> None:
+        """Record the decision the estimator acted on (a combination may overrule this monitor)."""
+
+    def note_outage(self, stamp: float) -> None:
+        """An epoch without a measured position (no fix, dead reckoning or a bad field)."""

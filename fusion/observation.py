@@ -1,0 +1,61 @@
+"""Screen a receiver fix into what the filters use: antenna position and its covariance from HDOP."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.gnss_fix import GnssFix
+
+POSITION_QUALITIES = frozenset({1, 2, 4, 5})
+"""GGA qualities that are a measured position: GPS, DGPS, RTK fixed, RTK float."""
+DEAD_RECKONING = 6
+
+
+@dataclass(frozen=True)
+class FixObservation:
+    """A usable fix: antenna (x, y) in world ENU, its 2x2 covariance, height and its variance."""
+
+    stamp: float
+    xy: np.ndarray
+    cov: np.ndarray
+    z: float
+    z_var: float
+    quality: int
+    hdop: float
+
+
+def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[FixObservation | None, str]:
+    """The fix as an observation, or None with the reason it cannot be used as a position."""
+    try:
+        quality = int(fix.quality)
+    except (TypeError, ValueError):
+        return None, f"bad field 'quality'={fix.quality!r}"
+    if quality == 0:
+        return None, "no fix (GGA quality 0)"
+    if quality == DEAD_RECKONING and not accept_dead_reckoning:
+        return None, "receiver dead reckoning (GGA quality 6)"
+    if quality not in POSITION_QUALITIES and quality != DEAD_RECKONING:
+        return None, f"unsupported GGA quality {quality}"
+    enu = np.asarray(fix.enu, dtype=float).reshape(-1)
+    if enu.size != 3 or not np.all(np.isfinite(enu)):
+        return None, f"bad field 'enu'={fix.enu!r}"
+    hdop = float(fix.hdop)
+    if not math.isfinite(hdop) or hdop <= 0:
+        return None, f"bad field 'hdop'={fix.hdop!r}"
+    vdop = float(fix.vdop) if math.isfinite(float(fix.vdop)) and fix.vdop > 0 else 2.0 * hdop
+    sigma_axis = uere_m * hdop / math.sqrt(2.0)
+    return (
+        FixObservation(
+            stamp=float(fix.stamp),
+            xy=enu[:2].copy(),
+            cov=np.eye(2) * sigma_axis**2,
+            z=float(enu[2]),
+            z_var=(uere_m * vdop) ** 2,
+            quality=quality,
+            hdop=hdop,
+        ),
+        "",
+    )

@@ -1,0 +1,54 @@
+"""Parameters every estimator shares: odometry source, monitor, vessel geometry, GPS noise, start-up."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+DEFAULT_MOUNT = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 1.8), (0.0, 0.0, 0.0, 1.0))
+
+
+class EstimatorParams(BaseModel):
+    """Shared estimator parameters (defaults in brackets).
+
+    matcher: name of the matcher whose odometry this estimator uses ["bev3dof"].
+    monitor / monitor_params: GPS integrity monitor and its parameters (default set per estimator).
+    mount: 4x4 base_link<-lidar [identity rotation, lidar 1.8 m above base_link].
+    antenna: antenna position on base_link, metres [(0, 0, 1.3)].
+    uere_m: range error scale; a fix's per-axis sigma is uere_m * HDOP / sqrt(2) [3.0, i.e. about
+        2.5 m CEP50 at HDOP 1, a consumer receiver].
+    accept_dead_reckoning: use the receiver's own dead-reckoned output (GGA 6) as a fix [False].
+    initial_pose: (x, y, yaw_deg) of base_link at the first input if known, with initial_sigma
+        (metres, degrees) [None, (1.0, 5.0)]; otherwise the pose is found at start-up by aligning
+        the odometry track with GPS over init_baseline_m.
+    init_baseline_m / init_min_fixes / init_max_hdop: start-up alignment needs this much GPS
+        travel, this many fixes, each with at most this HDOP [10 m, 5, 2.5].
+    default_odom_sigma_m / default_odom_sigma_yaw_deg: per-scan noise assumed when a match has no
+        covariance [0.1 m, 0.5 deg].
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    matcher: str = Field("bev3dof", min_length=1)
+    monitor: str = "consistency"
+    monitor_params: dict = Field(default_factory=dict)
+    mount: tuple[tuple[float, float, float, float], ...] = DEFAULT_MOUNT
+    antenna: tuple[float, float, float] = (0.0, 0.0, 1.3)
+    uere_m: float = Field(3.0, gt=0)
+    accept_dead_reckoning: bool = False
+    initial_pose: tuple[float, float, float] | None = None
+    initial_sigma: tuple[float, float] = (1.0, 5.0)
+    init_baseline_m: float = Field(10.0, gt=0)
+    init_min_fixes: int = Field(5, ge=2)
+    init_max_hdop: float = Field(2.5, gt=0)
+    default_odom_sigma_m: float = Field(0.1, gt=0)
+    default_odom_sigma_yaw_deg: float = Field(0.5, gt=0)
+
+    @field_validator("mount")
+    @classmethod
+    def _rigid(cls, mount: tuple) -> tuple:
+        m = np.asarray(mount, dtype=float)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            raise ValueError("must be a finite 4x4 matrix")
+        if not np.allclose(m[3], (0, 0, 0, 1)) or not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-6):
+            raise ValueError("must be a rigid transform (rotation and translation)")
+        return mount

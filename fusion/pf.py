@@ -1,0 +1,209 @@
+"""pf: particle filter with the ekf's inputs and a heavy-tailed (Student-t) GPS likelihood.
+
+Each particle carries a pose, its pose at the matcher's reference scan (clone) and a body
+velocity. Between scans particles coast at their velocity with white-acceleration noise. A match
+is fused per particle with the optimal Gaussian proposal: the particle's coasted pose (spread by
+the process noise since the clone) and the odometry pose (clone + step, with the matcher's full
+covariance rotated by the clone's heading) are combined, the particle is drawn from the product,
+and weighted by how well the two agreed. So a degenerate odometry direction leaves the particles
+to their motion and to GPS there. A fix reweights with a Student-t likelihood, so one wild fix
+barely moves the cloud and the filter survives wrong fixes without a hard gate.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import Field
+
+from fusion.bootstrap import Alignment
+from fusion.estimator import Estimator
+from fusion.geometry import between, wrap
+from fusion.monitors import Monitor
+from fusion.observation import FixObservation
+from fusion.params import EstimatorParams
+from sim.rng import stream
+
+
+class PfParams(EstimatorParams):
+    """PF parameters on top of the shared ones (defaults in brackets).
+
+    n_particles [500]; gps_dof: Student-t degrees of freedom of the GPS likelihood [3];
+    accel_sigma / lateral_accel_sigma (m/s^2/sqrt(Hz)) and yaw_accel_sigma_deg as in the ekf
+    [0.3, 0.2, 3.0]; resample_ess: resample when the effective sample size falls below this share
+    of n_particles [0.5]; roughen_m / roughen_deg: jitter added to resampled poses [0.02, 0.1];
+    seed: of the filter's random stream [0].
+    """
+
+    monitor: str = "none"
+    n_particles: int = Field(500, ge=10)
+    gps_dof: float = Field(3.0, gt=0)
+    accel_sigma: float = Field(0.3, gt=0)
+    lateral_accel_sigma: float = Field(0.2, gt=0)
+    yaw_accel_sigma_deg: float = Field(3.0, gt=0)
+    resample_ess: float = Field(0.5, gt=0, le=1)
+    roughen_m: float = Field(0.02, ge=0)
+    roughen_deg: float = Field(0.1, ge=0)
+    seed: int = 0
+
+
+def _rot_batch(yaw: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) block-diagonal rotations diag(R(yaw), 1)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.zeros((len(yaw), 3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 1, 0], out[:, 1, 1], out[:, 2, 2] = c, -s, s, c, 1.0
+    return out
+
+
+class Pf(Estimator):
+    """Particle filter over (pose, clone pose, body velocity)."""
+
+    name = "pf"
+
+    def __init__(self, params: PfParams, monitor: Monitor) -> None:
+        super().__init__(params, monitor)
+        self.params: PfParams = params
+        self.rng = stream(params.seed, "fusion.pf")
+        n = params.n_particles
+        self.poses = np.zeros((n, 3))
+        self.clones = np.zeros((n, 3))
+        self.vel = np.zeros((n, 3))
+        self.logw = np.full(n, -math.log(n))
+        self._coast_cov = np.zeros((3, 3))  # process spread accumulated since the clone, body frame
+        self._clone_stamp = 0.0
+        self._init = False
+        self._q = np.array([params.accel_sigma**2, params.lateral_accel_sigma**2, math.radians(params.yaw_accel_sigma_deg) ** 2])
+
+    @property
+    def initialized(self) -> bool:
+        return self._init
+
+    @property
+    def weights(self) -> np.ndarray:
+        w = np.exp(self.logw - self.logw.max())
+        return w / w.sum()
+
+    def _initialise(self, alignment: Alignment) -> None:
+        n = self.params.n_particles
+        chol = np.linalg.cholesky(alignment.cov + 1e-12 * np.eye(3))
+        self.poses = alignment.pose + self.rng.standard_normal((n, 3)) @ chol.T
+        self.poses[:, 2] = wrap(self.poses[:, 2])
+        self.vel = self.rng.normal(0.0, 0.5, (n, 3)) * [1.0, 1.0, 0.1]
+        velocity = self.odometry.velocity()
+        if velocity is not None:
+            self.vel += velocity
+        self.clones = self.poses.copy()
+        self._clone_stamp = alignment.stamp
+        last, now = self.odometry.last, self.odometry.pose_at(alignment.stamp)
+        if last is not None and now is not None and last.stamp == self._ref_stamp:
+            back = between(now, last.pose)  # from now back to the reference scan, body frame
+            rot = _rot_batch(self.poses[:, 2])
+            self.clones = self.poses + np.einsum("nij,j->ni", rot, back)
+            self.clones[:, 2] = wrap(self.clones[:, 2])
+            self._clone_stamp = last.stamp
+        self._coast_cov = np.zeros((3, 3))
+        self.logw = np.full(n, -math.log(n))
+        self._init = True
+
+    def _predict(self, stamp: float) -> None:
+        dt = stamp - self.stamp
+        if dt <= 0.0:
+            return
+        n = self.params.n_particles
+        dv = self.rng.standard_normal((n, 3)) * np.sqrt(self._q * dt)
+        body = (self.vel + 0.5 * dv) * dt
+        c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
+        self.poses[:, 0] += c * body[:, 0] - s * body[:, 1]
+        self.poses[:, 1] += s * body[:, 0] + c * body[:, 1]
+        self.poses[:, 2] = wrap(self.poses[:, 2] + body[:, 2])
+        self.vel += dv
+        self._coast_cov += np.diag(self._q) * dt**3 / 3.0
+
+    def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:
+        if not self._init:
+            return ""
+        rot = _rot_batch(self.clones[:, 2])
+        mu_o = self.clones + np.einsum("nij,j->ni", rot, step)
+        cov_o = rot @ step_cov @ rot.transpose(0, 2, 1)
+        cov_cv = rot @ (self._coast_cov + np.diag([1e-8, 1e-8, 1e-10])) @ rot.transpose(0, 2, 1)
+        r = mu_o - self.poses
+        r[:, 2] = wrap(r[:, 2])
+        S = cov_cv + cov_o
+        S_inv = np.linalg.inv(S)
+        K = cov_cv @ S_inv
+        mean = self.poses + np.einsum("nij,nj->ni", K, r)
+        post = cov_cv - K @ cov_cv
+        post = 0.5 * (post + post.transpose(0, 2, 1)) + 1e-14 * np.eye(3)
+        chol = np.linalg.cholesky(post)
+        self.poses = mean + np.einsum("nij,nj->ni", chol, self.rng.standard_normal((len(mean), 3)))
+        self.poses[:, 2] = wrap(self.poses[:, 2])
+        _, logdet = np.linalg.slogdet(S)
+        self.logw += -0.5 * (np.einsum("ni,nij,nj->n", r, S_inv, r) + logdet)
+        dt = stamp - self._clone_stamp
+        if dt > 0:
+            d = self.poses - self.clones
+            d[:, 2] = wrap(d[:, 2])
+            back = np.einsum("nji,nj->ni", rot, d)  # into each clone's body frame
+            self.vel = back / dt
+        self._after_weighting()
+        self._reanchor(stamp)
+        return ""
+
+    def _reanchor(self, stamp: float) -> None:
+        if self._init:
+            self.clones = self.poses.copy()
+            self._clone_stamp = stamp
+            self._coast_cov = np.zeros((3, 3))
+
+    def _antennas(self) -> np.ndarray:
+        c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
+        lx, ly = self.lever
+        return self.poses[:, :2] + np.column_stack([c * lx - s * ly, s * lx + c * ly])
+
+    def _update_fix(self, obs: FixObservation) -> None:
+        r = self._antennas() - obs.xy
+        d2 = np.einsum("ni,ij,nj->n", r, np.linalg.inv(obs.cov), r)
+        nu = self.params.gps_dof
+        self.logw += -0.5 * (nu + 2.0) * np.log1p(d2 / nu)
+        self._after_weighting()
+
+    def _after_weighting(self) -> None:
+        self.logw -= self.logw.max()
+        w = self.weights
+        self.logw = np.log(np.maximum(w, 1e-300))
+        ess = 1.0 / float(np.sum(w**2))
+        n = self.params.n_particles
+        if ess < self.params.resample_ess * n:
+            u = (self.rng.random() + np.arange(n)) / n
+            idx = np.minimum(np.searchsorted(np.cumsum(w), u), n - 1)
+            jitter = self.rng.standard_normal((n, 3)) * [self.params.roughen_m, self.params.roughen_m, math.radians(self.params.roughen_deg)]
+            self.poses = self.poses[idx] + jitter
+            self.poses[:, 2] = wrap(self.poses[:, 2])
+            self.clones = self.clones[idx] + jitter
+            self.clones[:, 2] = wrap(self.clones[:, 2])
+            self.vel = self.vel[idx]
+            self.logw = np.full(n, -math.log(n))
+
+    def _mean_cov(self, values: np.ndarray, angular: int | None) -> tuple[np.ndarray, np.ndarray]:
+        w = self.weights
+        mean = w @ values
+        if angular is not None:
+            mean[angular] = math.atan2(float(w @ np.sin(values[:, angular])), float(w @ np.cos(values[:, angular])))
+        d = values - mean
+        if angular is not None:
+            d[:, angular] = wrap(d[:, angular])
+        return mean, (d * w[:, None]).T @ d
+
+    def _pose3(self) -> np.ndarray:
+        return self._mean_cov(self.poses, 2)[0]
+
+    def _cov3(self) -> np.ndarray:
+        return self._mean_cov(self.poses, 2)[1]
+
+    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._mean_cov(self._antennas(), None)
+
+    def _heading(self) -> tuple[float, float]:
+        mean, cov = self._mean_cov(self.poses, 2)
+        return float(mean[2]), float(cov[2, 2])

@@ -1,0 +1,130 @@
+"""EKF against exact truth on synthetic streams: odometry only, GPS only, consistency, degeneracy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+import fusion
+from fusion.geometry import compose
+from fusion_streams import StreamSpec, errors, generate, pose_at, run
+
+
+def _initial(t_grid, poses, t=0.0):
+    p = pose_at(t_grid, poses, t)
+    return (float(p[0]), float(p[1]), math.degrees(p[2]))
+
+
+def test_perfect_odometry_without_gps_reproduces_odometry():
+    tiny = np.diag([1e-12, 1e-12, 1e-14])
+    spec = StreamSpec(duration=40.0, odom_sigma=(0.0, 0.0, 0.0), odom_cov_scale=tiny, no_gps=True)
+    events, t_grid, poses = generate(spec)
+    ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(1e-6, 1e-6))
+    chain = np.asarray(pose_at(t_grid, poses, 0.0))
+    for kind, stamp, result in events:
+        ekf.add_match(stamp, result)
+        if result.ok:
+            T = result.T
+            chain = compose(chain, np.array([T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])]))
+            est = ekf.pose
+            assert np.hypot(est[0, 3] - chain[0], est[1, 3] - chain[1]) < 1e-4
+            assert abs(math.atan2(est[1, 0], est[0, 0]) - chain[2]) < 1e-6
+    truth = pose_at(t_grid, poses, events[-1][1])
+    assert np.hypot(*(chain[:2] - truth[:2])) < 1e-6  # the odometry itself was perfect
+    assert not [e for e in ekf.events if "first scan" not in e.reason]
+
+
+def test_perfect_gps_is_followed_even_with_biased_odometry():
+    spec = StreamSpec(duration=40.0, uere=1e-3, gps_noise=False, odom_corrupt=(1.1, 1.0))
+    events, t_grid, poses = generate(spec)
+    ekf = fusion.create("ekf", monitor="none", uere_m=1e-3, initial_pose=_initial(t_grid, poses))
+    out = run(ekf, events)
+    err = errors(out, t_grid, poses)
+    after_fix = np.array([kind == "fix" for kind, _, _ in events])
+    late = out["stamp"] > 5.0
+    assert np.abs(err[after_fix & late, :2]).max() < 0.01
+    assert np.abs(err[late, :2]).max() < 0.05  # between fixes only 0.2 s of 10 % odometry bias
+
+
+def test_nees_is_consistent():
+    runs = 12
+    nees = []
+    for seed in range(runs):
+        events, t_grid, poses = generate(StreamSpec(duration=60.0, seed=seed))
+        rng = np.random.default_rng(100 + seed)
+        x, y, yaw = _initial(t_grid, poses)
+        start = (x + rng.normal(0, 1.0), y + rng.normal(0, 1.0), yaw + rng.normal(0, 5.0))
+        ekf = fusion.create("ekf", monitor="none", initial_pose=start, initial_sigma=(1.0, 5.0))
+        out = run(ekf, events)
+        err = errors(out, t_grid, poses)
+        nees.append(np.einsum("ni,nij,nj->n", err, np.linalg.inv(out["cov"]), err))
+    mean_over_runs = np.mean(nees, axis=0)
+    lo, hi = chi2.ppf(0.025, 3 * runs) / runs, chi2.ppf(0.975, 3 * runs) / runs
+    assert lo < mean_over_runs.mean() < hi
+    assert np.mean((mean_over_runs > lo) & (mean_over_runs < hi)) > 0.8
+
+
+@pytest.mark.parametrize("mount_yaw_deg", [0.0, 90.0])
+def test_degenerate_odometry_leans_on_gps_along_that_axis(mount_yaw_deg):
+    # A matcher in a straight canal: the forward motion is unobserved (it reports none of it) and
+    # says so with a huge forward variance in its own (lidar) frame; sideways and yaw are precise.
+    mount = np.eye(4)
+    c, s = math.cos(math.radians(mount_yaw_deg)), math.sin(math.radians(mount_yaw_deg))
+    mount[:2, :2] = [[c, -s], [s, c]]
+    mount[2, 3] = 1.8
+    degenerate = np.diag([25.0, 0.01**2, math.radians(0.05) ** 2])
+    confident = np.diag([0.01**2, 0.01**2, math.radians(0.05) ** 2])
+    results = {}
+    for name, cov in (("degenerate", degenerate), ("confident", confident)):
+        spec = StreamSpec(duration=60.0, turn_amp_dps=0.0, odom_sigma=(0, 0, 0), odom_cov_scale=cov,
+                          odom_corrupt=(0.0, 1.0), mount=mount, seed=3)
+        events, t_grid, poses = generate(spec)
+        ekf = fusion.create("ekf", monitor="none", initial_pose=_initial(t_grid, poses),
+                            mount=[list(r) for r in mount])
+        out = run(ekf, events)
+        err = errors(out, t_grid, poses)
+        yaw = pose_at(t_grid, poses, 0.0)[2]
+        along = err[:, 0] * math.cos(yaw) + err[:, 1] * math.sin(yaw)
+        across = -err[:, 0] * math.sin(yaw) + err[:, 1] * math.cos(yaw)
+        late = out["stamp"] > 20.0
+        results[name] = (np.sqrt(np.mean(along[late] ** 2)), np.sqrt(np.mean(across[late] ** 2)), out["cov"][-1])
+    along, across, cov = results["degenerate"]
+    assert along < 2.0  # GPS (2.1 m per axis per fix) carries the along-canal position
+    assert across < 0.5  # the odometry keeps the cross-canal position far tighter than GPS
+    yaw = pose_at(t_grid, poses, 0.0)[2]
+    u = np.array([math.cos(yaw), math.sin(yaw)])
+    v = np.array([-math.sin(yaw), math.cos(yaw)])
+    assert u @ cov[:2, :2] @ u > 5.0 * (v @ cov[:2, :2] @ v)  # uncertainty is along the canal
+    assert results["confident"][0] > 10.0  # trusting the slipping matcher loses the boat
+
+
+def test_coasts_with_growing_covariance_when_the_matcher_always_fails():
+    spec = StreamSpec(duration=30.0, failing_matcher=True, no_gps=False)
+    events, t_grid, poses = generate(spec)
+    ekf = fusion.create("ekf", monitor="none")
+    out = run(ekf, events)
+    assert ekf.initialized  # from the GPS course alone
+    err = errors(out, t_grid, poses)
+    ok = np.isfinite(err[:, 0])
+    assert np.sqrt(np.mean(err[ok & (out["stamp"] > 15), :2] ** 2)) < 3.0
+    reasons = {e.reason for e in ekf.events}
+    assert any("always fails" in r for r in reasons)
+
+
+def test_coasting_through_a_matcher_outage_without_gps():
+    spec = StreamSpec(duration=30.0, no_gps=True, turn_amp_dps=0.0)
+    events, t_grid, poses = generate(spec)
+    ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(0.1, 0.5))
+    traces = []
+    for kind, stamp, result in events:
+        if 10.0 <= stamp < 13.0:
+            ekf.add_match(stamp, type(result).failure("blinded"))
+            traces.append(np.trace(ekf.cov[:2, :2]))
+        else:
+            ekf.add_match(stamp, result)
+    assert np.all(np.diff(traces) > 0)  # uncertainty grows while coasting
+    truth = pose_at(t_grid, poses, events[-1][1])
+    assert np.hypot(ekf.pose[0, 3] - truth[0], ekf.pose[1, 3] - truth[1]) < 3.0

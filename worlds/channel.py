@@ -87,8 +87,8 @@ class ChannelParams(BaseModel):
     stretches: list[EdgeStretch] = Field(default_factory=list, description="per-side station ranges with another edge style; later ones win")
     water_margin_m: float = Field(8.0, gt=0.0, description="how far the water surface reaches beyond each edge (under walls and banks), m")
     end_extension_m: float = Field(150.0, ge=0.0, description="straight channel continued beyond each route end, m")
-    max_turn_deg: float = Field(2.0, gt=0.0, le=30.0, description="sampling: new cross-section whenever the route heading turned this much")
-    max_step_m: float = Field(20.0, gt=0.0, le=500.0, description="sampling: longest step between cross-sections on straights, m")
+    max_turn_deg: float = Field(1.0, gt=0.0, le=30.0, description="sampling: new cross-section whenever the route heading turned this much")
+    max_step_m: float = Field(8.0, gt=0.0, le=500.0, description="sampling: longest step between cross-sections on straights, m")
 
 
 @dataclass(frozen=True)

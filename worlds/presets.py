@@ -130,10 +130,11 @@ def charles_river(p: CharlesRiverParams) -> World:
 # canal_lock
 
 
-CANAL_WAYPOINTS = np.array([
-    [0.0, 0.0], [100.0, 0.0], [200.0, 0.0], [300.0, 0.0], [400.0, 0.0], [520.0, 25.0], [640.0, 80.0],
-    [760.0, 110.0], [880.0, 115.0], [1000.0, 115.0],
-])
+CANAL_WAYPOINTS = np.array(
+    # collinear every 50 m up to 450 m so the spline is straight (< 0.1 deg) over CANAL_STRAIGHT
+    [[x, 0.0] for x in range(0, 451, 50)] + [[560.0, 25.0], [660.0, 75.0], [760.0, 105.0], [880.0, 115.0], [1000.0, 115.0]],
+    dtype=float,
+)
 CANAL_STRAIGHT = (20.0, 300.0)
 
 

@@ -38,7 +38,7 @@ class Bootstrap:
         if obs.hdop > self.max_hdop:
             return None
         odo = odometry.pose_at(obs.stamp) if odometry.velocity() is not None else None
-        segment = odometry.last.segment if odo is not None else None
+        segment = odometry.segment if odo is not None else None
         if segment is not None:  # fixes seen on an earlier (broken) chain no longer link to this one
             self._fixes = [f if f[2] in (None, segment) else (f[0], None, None) for f in self._fixes]
         self._fixes.append((obs, odo, segment))

@@ -67,15 +67,14 @@ class Ekf(Estimator):
         self.P[POSE, POSE] = alignment.cov
         self.P[V, V] = self.P[VL, VL] = 1.0
         self.P[W, W] = math.radians(10.0) ** 2
-        last = self.odometry.last
         now = self.odometry.pose_at(alignment.stamp)
         velocity = self.odometry.velocity()
         if velocity is not None:
             self.x[V:W + 1] = velocity
             self.P[V, V] = self.P[VL, VL] = 0.25
         clone = alignment.pose
-        if last is not None and now is not None and last.stamp == self._ref_stamp:
-            clone = compose(alignment.pose, between(now, last.pose))
+        if now is not None and self.odometry.last_stamp == self._ref_stamp:
+            clone = compose(alignment.pose, between(now, self.odometry.last_pose))
         self.x[CLONE] = clone
         self.P[CLONE, CLONE] = alignment.cov
         self.P[CLONE, POSE] = self.P[POSE, CLONE] = alignment.cov

@@ -60,16 +60,15 @@ class HdopSwitch(Estimator):
         self._anchor_odo = self.odometry.pose_at(stamp)
         self._anchor_stamp = stamp
         self._anchor_cov = cov.copy()
-        self._segment = self.odometry.last.segment if self.odometry.last is not None else None
+        self._segment = self.odometry.segment
 
     def _dead_reckoned(self) -> tuple[np.ndarray, np.ndarray]:
         """World pose now and its covariance, carried from the anchor by the odometry."""
-        last = self.odometry.last
-        if self._anchor_odo is None or last is None or last.segment != self._segment:
+        if self._anchor_odo is None or self.odometry.segment is None or self.odometry.segment != self._segment:
             return self._anchor_world.copy(), self._anchor_cov.copy()
         now = self.odometry.pose_at(self.stamp)
         if now is None:
-            now = last.pose
+            now = self.odometry.last_pose
         pose = compose(self._anchor_world, between(self._anchor_odo, now))
         moved = self.odometry.displacement(self._anchor_stamp, self.stamp, np.zeros(2))
         cov = self._anchor_cov.copy()
@@ -86,19 +85,18 @@ class HdopSwitch(Estimator):
 
     def _reanchor(self, stamp: float) -> None:
         """The odometry chain broke at this scan: continue from the new segment where the old one ended."""
-        last = self.odometry.last
-        if not self._init or last is None:
+        if not self._init or self.odometry.segment is None:
             return
-        pose, cov = self._anchor_world, self._anchor_cov
-        if self._anchor_odo is not None and self._segment == last.segment - 1:
-            pose = compose(self._anchor_world, between(self._anchor_odo, last.pose))
+        pose, cov, end = self._anchor_world, self._anchor_cov, self.odometry.last_pose
+        if self._anchor_odo is not None and self._segment == self.odometry.segment - 1:
+            pose = compose(self._anchor_world, between(self._anchor_odo, end))
             cov = cov + np.diag(np.diag(self._default_odom_cov)[[0, 1, 5]])
         self._anchor_world, self._anchor_cov = pose, cov
-        self._anchor_odo, self._anchor_stamp, self._segment = last.pose.copy(), stamp, last.segment
+        self._anchor_odo, self._anchor_stamp, self._segment = end.copy(), stamp, self.odometry.segment
 
     def _update_fix(self, obs: FixObservation) -> None:
         odo = self.odometry.pose_at(obs.stamp)
-        segment = self.odometry.last.segment if self.odometry.last is not None else None
+        segment = self.odometry.segment
         if odo is not None:
             if self._course is None or self._course[2] != segment:
                 self._course = (obs, odo, segment)

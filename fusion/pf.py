@@ -95,13 +95,13 @@ class Pf(Estimator):
             self.vel += velocity
         self.clones = self.poses.copy()
         self._clone_stamp = alignment.stamp
-        last, now = self.odometry.last, self.odometry.pose_at(alignment.stamp)
-        if last is not None and now is not None and last.stamp == self._ref_stamp:
-            back = between(now, last.pose)  # from now back to the reference scan, body frame
+        now = self.odometry.pose_at(alignment.stamp)
+        if now is not None and self.odometry.last_stamp == self._ref_stamp:
+            back = between(now, self.odometry.last_pose)  # from now back to the reference scan, body frame
             rot = _rot_batch(self.poses[:, 2])
             self.clones = self.poses + np.einsum("nij,j->ni", rot, back)
             self.clones[:, 2] = wrap(self.clones[:, 2])
-            self._clone_stamp = last.stamp
+            self._clone_stamp = self.odometry.last_stamp
         self._coast_cov = np.zeros((3, 3))
         self.logw = np.full(n, -math.log(n))
         self._init = True

@@ -5,12 +5,16 @@ both covariances (GPS from HDOP, odometry from the matcher's covariances chained
 world by the filter's heading with its variance):
 - window: against the fix about `window_s` earlier; differencing cancels a slowly varying bias and
   catches a multipath jump at its onset.
-- chain: against the last trusted fix (up to `reference_max_age_s` old), so that a bias that
-  persists after its onset stays flagged.
+- reference: against a reference antenna track that only trusted fixes update and the odometry
+  carries between fixes (a small Kalman filter of its own, independent of the host filter), so a
+  bias that persists after its onset stays flagged and one leaked fix barely moves the reference.
+  Without a trusted fix for `reference_max_age_s` the reference is dropped and rebuilt.
 Guard: after a stretch of at least `gap_s` without a measured fix (a blackout, or start-up), the
 receiver's own filter may carry a wrong estimate that it smooths back slowly; fixes stay
-untrusted for at least `guard_s` and until `guard_n` consecutive window tests pass the tighter
-`guard_gate_prob` gate (the receiver's track moves with the odometry again).
+untrusted for at least `guard_s` and until `guard_n` consecutive fixes pass both tests at the
+tighter `guard_gate_prob` gate (the receiver's track moves with the odometry again and agrees with
+the reference). The window test for the verdict uses trusted fixes only, so the end of a fault is
+not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard.
 """
 
 from __future__ import annotations
@@ -29,8 +33,9 @@ from fusion.verdict import Verdict
 
 
 class ConsistencyParams(BaseModel):
-    """Defaults: window 2 s, gate 0.999 (13.8), chain reference up to 60 s old, guard after a 2 s gap
-    for at least 5 s and 5 consecutive window tests under the 0.99 gate (9.2)."""
+    """Defaults: window 2 s, gate 0.999 (13.8), reference dropped after 60 s without a trusted fix,
+    guard after a 2 s gap for at least 5 s and 5 consecutive window tests under the 0.99 gate (9.2);
+    max_speed_mps bounds the unknown motion where the odometry does not cover a step [5 m/s]."""
 
     model_config = ConfigDict(extra="forbid")
     window_s: float = Field(2.0, gt=0)
@@ -40,6 +45,7 @@ class ConsistencyParams(BaseModel):
     guard_s: float = Field(5.0, ge=0)
     guard_n: int = Field(5, ge=0)
     guard_gate_prob: float = Field(0.99, gt=0.5, lt=1.0)
+    max_speed_mps: float = Field(5.0, gt=0)
 
 
 class ConsistencyMonitor(Monitor):
@@ -51,61 +57,76 @@ class ConsistencyMonitor(Monitor):
         self.params = params
         self.gate = float(chi2.ppf(params.gate_prob, 2))
         self.guard_gate = float(chi2.ppf(params.guard_gate_prob, 2))
-        self._history: deque[FixObservation] = deque()
-        self._last_trusted: FixObservation | None = None
+        self._history: deque[tuple[FixObservation, bool]] = deque()  # recent fixes and whether trusted
+        self._ref: tuple[float, np.ndarray, np.ndarray] | None = None  # stamp, antenna xy, 2x2 cov
+        self._ref_trusted_at = -math.inf
         self._last_measured: float | None = None
         self._guard_start: float | None = None
         self._guard_passes = 0
-        self._pending_window_d2 = math.nan
+        self._pending: tuple[bool, tuple | None, float] = (False, None, math.nan)
 
-    def _distance(self, ref: FixObservation, obs: FixObservation, ctx: FixContext) -> float:
-        """Mahalanobis distance squared of the GPS displacement from ref to obs against the odometry's."""
-        moved = ctx.odometry.displacement(ref.stamp, obs.stamp, ctx.lever)
+    def _moved(self, t_a: float, t_b: float, ctx: FixContext) -> tuple[np.ndarray, np.ndarray] | None:
+        """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance."""
+        moved = ctx.odometry.displacement(t_a, t_b, ctx.lever)
         if moved is None or ctx.yaw is None:
-            return math.nan
+            return None
         d_odo, cov_odo, odo_yaw = moved
         offset = ctx.yaw - odo_yaw
         rot = rot2(offset)
-        d_world = rot @ d_odo
         j_yaw = drot2(offset) @ d_odo
-        cov = rot @ cov_odo @ rot.T + np.outer(j_yaw, j_yaw) * (ctx.yaw_var or 0.0) + ref.cov + obs.cov
-        r = (obs.xy - ref.xy) - d_world
-        return float(r @ np.linalg.solve(cov, r))
+        return rot @ d_odo, rot @ cov_odo @ rot.T + np.outer(j_yaw, j_yaw) * (ctx.yaw_var or 0.0)
 
-    def _window_reference(self, stamp: float) -> FixObservation | None:
-        target = stamp - self.params.window_s
-        best = None
-        for old in self._history:
-            if old.stamp <= stamp - 0.5 * self.params.window_s and old.stamp >= stamp - 2.0 * self.params.window_s:
+    def _distance(self, ref: FixObservation, obs: FixObservation, ctx: FixContext) -> float:
+        """Mahalanobis distance squared of the GPS displacement from ref to obs against the odometry's."""
+        moved = self._moved(ref.stamp, obs.stamp, ctx)
+        if moved is None:
+            return math.nan
+        r = (obs.xy - ref.xy) - moved[0]
+        return float(r @ np.linalg.solve(moved[1] + ref.cov + obs.cov, r))
+
+    def _reference_at(self, obs: FixObservation, ctx: FixContext) -> tuple[float, np.ndarray, np.ndarray] | None:
+        """The reference antenna track carried by the odometry to this fix (None without one)."""
+        if self._ref is None or obs.stamp - self._ref_trusted_at > self.params.reference_max_age_s:
+            return None
+        stamp, xy, cov = self._ref
+        moved = self._moved(stamp, obs.stamp, ctx)
+        if moved is None:  # odometry does not cover the step: unknown motion up to max_speed_mps
+            spread = (self.params.max_speed_mps * (obs.stamp - stamp)) ** 2
+            return obs.stamp, xy, cov + np.eye(2) * spread
+        return obs.stamp, xy + moved[0], cov + moved[1]
+
+    def _window_reference(self, stamp: float, trusted_only: bool) -> FixObservation | None:
+        """The kept fix nearest to `window_s` before stamp (within half to twice that), or None."""
+        target, best = stamp - self.params.window_s, None
+        for old, trusted in self._history:
+            if trusted_only and not trusted:
+                continue
+            if stamp - 2.0 * self.params.window_s <= old.stamp <= stamp - 0.5 * self.params.window_s:
                 if best is None or abs(old.stamp - target) < abs(best.stamp - target):
                     best = old
         return best
 
-    def _in_guard(self, stamp: float) -> bool:
-        if self._guard_start is None:
-            return False
-        return stamp - self._guard_start < self.params.guard_s or self._guard_passes < self.params.guard_n
-
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
-        if self._last_measured is None or obs.stamp - self._last_measured >= self.params.gap_s:
-            guard_start = obs.stamp
-        else:
-            guard_start = self._guard_start
-        window_ref = self._window_reference(obs.stamp)
-        window_d2 = math.nan if window_ref is None else self._distance(window_ref, obs, ctx)
-        chain_d2 = math.nan
-        ref = self._last_trusted
-        if ref is not None and obs.stamp - ref.stamp <= self.params.reference_max_age_s:
-            chain_d2 = self._distance(ref, obs, ctx)
-        self._pending_window_d2 = window_d2
-        tests = [d for d in (window_d2, chain_d2) if not math.isnan(d)]
+        gap = self._last_measured is None or obs.stamp - self._last_measured >= self.params.gap_s
+        # window test against a trusted fix (for the verdict) and against any fix (for the guard)
+        trusted_ref = None if gap else self._window_reference(obs.stamp, trusted_only=True)
+        any_ref = None if gap else self._window_reference(obs.stamp, trusted_only=False)
+        window_d2 = math.nan if trusted_ref is None else self._distance(trusted_ref, obs, ctx)
+        guard_d2 = math.nan if any_ref is None else self._distance(any_ref, obs, ctx)
+        ref = self._reference_at(obs, ctx)
+        ref_d2 = math.nan
+        if ref is not None:
+            r = obs.xy - ref[1]
+            ref_d2 = float(r @ np.linalg.solve(ref[2] + obs.cov, r))
+        self._pending = (gap, ref, max([d for d in (guard_d2, ref_d2) if not math.isnan(d)], default=math.nan))
+        tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
-        passes = self._guard_passes if guard_start == self._guard_start else 0
-        in_guard = guard_start is not None and (
-            obs.stamp - guard_start < self.params.guard_s or passes < self.params.guard_n
+        passes = 0 if gap else self._guard_passes
+        in_guard = (gap or self._guard_start is not None) and (
+            obs.stamp - (obs.stamp if gap else self._guard_start) < self.params.guard_s or passes < self.params.guard_n
         )
         if tests and statistic > self.gate:
-            which = "window" if window_d2 == statistic else "chain"
+            which = "window" if window_d2 == statistic else "reference"
             return Verdict(False, statistic, f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}")
         if in_guard:
             return Verdict(False, statistic, f"re-acquisition guard ({passes}/{self.params.guard_n} consistent)")
@@ -114,21 +135,25 @@ class ConsistencyMonitor(Monitor):
         return Verdict(True, statistic, "displacement consistent")
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
-        if self._last_measured is None or obs.stamp - self._last_measured >= self.params.gap_s:
-            self._guard_start = obs.stamp
-            self._guard_passes = 0
+        gap, ref, guard_d2 = self._pending
+        if gap:
+            self._guard_start, self._guard_passes = obs.stamp, 0
             self._history.clear()
         if self._guard_start is not None:
-            # without odometry to compare (nan) the guard can only wait out guard_s
-            if math.isnan(self._pending_window_d2) or self._pending_window_d2 <= self.guard_gate:
-                self._guard_passes += 1
-            else:
-                self._guard_passes = 0
-            if not self._in_guard(obs.stamp):
+            # without odometry or a reference to compare (nan) the guard can only wait out guard_s
+            self._guard_passes = self._guard_passes + 1 if not guard_d2 > self.guard_gate else 0
+            if obs.stamp - self._guard_start >= self.params.guard_s and self._guard_passes >= self.params.guard_n:
                 self._guard_start = None
         self._last_measured = obs.stamp
-        self._history.append(obs)
-        while self._history and self._history[0].stamp < obs.stamp - 2.0 * self.params.window_s:
+        self._history.append((obs, verdict.trusted))
+        while self._history and self._history[0][0].stamp < obs.stamp - 2.0 * self.params.window_s:
             self._history.popleft()
+        self._ref = ref
         if verdict.trusted:
-            self._last_trusted = obs
+            if self._ref is None:
+                self._ref = (obs.stamp, obs.xy.copy(), obs.cov.copy())
+            else:
+                stamp, xy, cov = self._ref
+                gain = cov @ np.linalg.inv(cov + obs.cov)
+                self._ref = (stamp, xy + gain @ (obs.xy - xy), (np.eye(2) - gain) @ cov)
+            self._ref_trusted_at = obs.stamp

@@ -42,7 +42,8 @@ class GnssFix:
     """One receiver output epoch. quality follows NMEA GGA: 0 invalid, 1 GPS, 6 dead reckoning.
 
     enu is the reported antenna position in the world's ENU frame (NaN when quality is 0);
-    lat/lon/alt are the same position in WGS-84 degrees and metres.
+    lat/lon/alt are the same position in WGS-84 degrees and metres; utc is ISO 8601;
+    speed_mps / course_deg are speed over ground and course (deg clockwise from north), NaN if unknown.
     """
 
     stamp: float
@@ -58,7 +59,15 @@ class GnssFix:
     sats: tuple[SatelliteReport, ...] = ()
     utc: str = ""
     truth: FixTruth | None = field(default=None, compare=False, repr=False)
+    speed_mps: float = float("nan")
+    course_deg: float = float("nan")
 
     @property
     def valid(self) -> bool:
         return self.quality != 0
+
+    def nmea(self) -> list[str]:
+        """This epoch as NMEA 0183 sentences: GGA, RMC, GSA, GSV (see sim.nmea)."""
+        from sim.nmea import fix_sentences
+
+        return fix_sentences(self)

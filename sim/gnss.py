@@ -1,0 +1,288 @@
+"""GnssReceiver: a GPS receiver on the vessel, with ray-traced blackout and multipath over the world mesh.
+
+Per epoch: satellite positions from the nominal almanac (sim.constellation), azimuth/elevation
+from the antenna in the world's ENU frame, the elevation mask, line of sight and facade
+reflections by ray casting (sim.visibility, sim.multipath), pseudoranges with the receiver clock,
+elevation-dependent errors and NLOS/multipath biases (sim.pseudorange), a weighted least-squares
+position (sim.wls), and the receiver's own navigation filter (sim.receiver_filter). Every fix
+carries the exact truth. All randomness comes from sim.rng.stream(seed, "gnss....").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timedelta, timezone
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from sim import wls
+from sim.constellation import Constellation
+from sim.geodesy import LocalFrame
+from sim.gnss_fix import FixTruth, GnssFix, SatelliteReport, SatelliteTruth
+from sim.multipath import L1_WAVELENGTH_M, FacadeIndex, code_multipath_error
+from sim.pseudorange import PseudorangeNoise, RangeErrors
+from sim.receiver_filter import CvKalman, FilterConfig
+from sim.rng import stream
+from sim.visibility import trace
+
+DEFAULT_EPOCH = datetime(2024, 6, 15, 14, 0, 0, tzinfo=timezone.utc)
+"""Default scenario start: 10:00 local time in Boston on a June day."""
+
+
+class OutageWindow(BaseModel):
+    """A forced outage: no satellite is tracked for start_s <= t < end_s (scenario time, s)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    start_s: float
+    end_s: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "OutageWindow":
+        if not self.end_s > self.start_s:
+            raise ValueError(f"end_s ({self.end_s}) must be after start_s ({self.start_s})")
+        return self
+
+
+class BiasWindow(OutageWindow):
+    """A forced fault for start_s <= t < end_s on top of the physics.
+
+    enu_m shifts the raw position solution by this ENU offset (applied through the pseudoranges,
+    -u_i . offset on satellite i, so DOP and residuals stay consistent); prn with range_m adds a
+    range bias to one satellite (a classic integrity-monitor test).
+    """
+
+    enu_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    prn: int | None = Field(None, ge=1)
+    range_m: float = 0.0
+
+
+class MultipathConfig(BaseModel):
+    """Facade reflections (image method)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    search_radius_m: float = Field(
+        100.0, gt=0.0, le=1000.0, description="Only facades within this distance of the antenna reflect, m."
+    )
+    reflection_amplitude: float = Field(
+        0.4, gt=0.0, lt=1.0,
+        description="Amplitude of a facade reflection relative to the direct signal (0.4 = -8 dB: reflection and "
+        "RHCP antenna losses).",
+    )
+    correlator_spacing_chips: float = Field(
+        0.2, gt=0.0, le=1.0, description="Early-late correlator spacing of the code tracking loop, C/A chips."
+    )
+
+
+class GnssConfig(BaseModel):
+    """All settings of the simulated receiver; every default is a consumer-grade GPS receiver."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    rate_hz: float = Field(5.0, ge=1.0, le=10.0, description="Output rate, Hz (1-10).")
+    epoch_utc: datetime = Field(DEFAULT_EPOCH, description="UTC at scenario time 0 (satellite geometry).")
+    elevation_mask_deg: float = Field(12.0, ge=0.0, lt=90.0, description="Satellites below this are not used, deg.")
+    antenna_offset_m: tuple[float, float, float] = Field(
+        (0.0, 0.0, 1.3), description="Antenna phase centre on base_link (x fwd, y left, z up), m."
+    )
+    noise: PseudorangeNoise = Field(default_factory=PseudorangeNoise, description="Pseudorange error model.")
+    multipath: MultipathConfig = Field(default_factory=MultipathConfig, description="Facade reflections.")
+    filter_mode: Literal["kalman", "raw"] = Field(
+        "kalman", description="'kalman': the receiver's CV filter output; 'raw': single-epoch WLS solutions."
+    )
+    filter: FilterConfig = Field(default_factory=FilterConfig, description="Receiver navigation filter.")
+    coast_limit_s: float = Field(
+        10.0, ge=0.0, description="Dead reckoning (quality 6) this long after the last raw fix, then quality 0, s."
+    )
+    forced_outages: tuple[OutageWindow, ...] = Field((), description="Forced outage intervals (off by default).")
+    forced_biases: tuple[BiasWindow, ...] = Field((), description="Forced position/range biases (off by default).")
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _valid_epoch(cls, value: datetime) -> datetime:
+        value = value if value.tzinfo is not None else value.replace(tzinfo=timezone.utc)
+        value = value.astimezone(timezone.utc)
+        Constellation.seconds_since_epoch(value)
+        return value
+
+
+@dataclass
+class _WorldGeometry:
+    """What the receiver derives once per world: the facade index and the local ENU frame."""
+
+    world: object
+    facades: FacadeIndex
+    frame: LocalFrame
+
+
+class GnssReceiver:
+    """Simulated GPS receiver; call `.fix(world, trajectory, t)` at increasing times t (s)."""
+
+    def __init__(self, rate_hz: float = 5.0, seed: int = 0, **more):
+        self.config = GnssConfig(rate_hz=rate_hz, **more)
+        self.seed = int(seed)
+        self.constellation = Constellation.nominal()
+        self._errors = RangeErrors(self.config.noise, len(self.constellation), stream(self.seed, "gnss.range_errors"))
+        self._cn0_rng = stream(self.seed, "gnss.cn0")
+        self._filter = CvKalman(self.config.filter)
+        self._offset = np.array(self.config.antenna_offset_m, dtype=float)
+        self._mask = np.deg2rad(self.config.elevation_mask_deg)
+        self._worlds: dict[int, _WorldGeometry] = {}
+        self._last_t: float | None = None
+        self._last_raw_t = -np.inf
+        self._last_raw_enu: np.ndarray | None = None
+        self._start: np.ndarray | None = None
+
+    @property
+    def rate_hz(self) -> float:
+        return self.config.rate_hz
+
+    def epochs(self, t_end: float, t_start: float = 0.0) -> np.ndarray:
+        """Output times from t_start (inclusive) to t_end (exclusive) at rate_hz."""
+        return t_start + np.arange(int(np.ceil((t_end - t_start) * self.rate_hz - 1e-9))) / self.rate_hz
+
+    def _geometry(self, world) -> _WorldGeometry:
+        cached = self._worlds.get(id(world))
+        if cached is None or cached.world is not world:
+            facades = FacadeIndex.from_world(world, self.config.multipath.search_radius_m)
+            cached = _WorldGeometry(world, facades, LocalFrame.at(*world.origin))
+            self._worlds[id(world)] = cached
+        return cached
+
+    def _antenna(self, trajectory, t: float) -> np.ndarray:
+        pose = np.asarray(trajectory.pose(t), dtype=float)
+        if pose.shape != (4, 4):
+            raise ValueError(f"gnss: trajectory.pose({t}) must be a 4x4 matrix, got shape {pose.shape}")
+        if not np.isfinite(pose).all():
+            raise ValueError(f"gnss: trajectory pose at t={t} s is not finite (NaN or inf)")
+        return pose[:3, :3] @ self._offset + pose[:3, 3]
+
+    def fix(self, world, trajectory, t: float) -> GnssFix:
+        """The receiver's output at scenario time t (s); times must increase from call to call."""
+        t = float(t)
+        if not np.isfinite(t):
+            raise ValueError(f"gnss: fix time must be finite, got {t}")
+        if self._last_t is not None and t <= self._last_t:
+            raise ValueError(f"gnss: fix times must increase, got t={t} after t={self._last_t}")
+        utc = self.config.epoch_utc + timedelta(seconds=t)
+        since_almanac = Constellation.seconds_since_epoch(utc)
+        antenna = self._antenna(trajectory, t)
+        geo = self._geometry(world)
+        self._last_t = t
+
+        # Satellite geometry in the world's ENU frame, mask.
+        sat_enu = geo.frame.enu_of_ecef(self.constellation.ecef(since_almanac))
+        diff = sat_enu - antenna
+        geometric = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        up = diff[:, 2] / geometric
+        view = np.nonzero(up >= np.sin(self._mask))[0]
+        sat_enu, geometric, dirs = sat_enu[view], geometric[view], diff[view] / geometric[view, None]
+        el = np.arcsin(up[view])
+
+        # Signal paths: direct and reflected, one ray batch.
+        reflections = geo.facades.reflections(antenna, dirs)
+        paths = trace(world.raycasting_scene, antenna, dirs, reflections)
+        if paths.inside_solid:
+            raise ValueError(
+                f"gnss: antenna at ENU ({antenna[0]:.2f}, {antenna[1]:.2f}, {antenna[2]:.2f}) at t={t} s "
+                f"is inside a solid part of world {getattr(world, 'name', '?')!r}"
+            )
+        extra = np.full(len(view), np.inf)
+        ok = paths.reflection_clear
+        np.minimum.at(extra, reflections.sat[ok], reflections.extra_m[ok])
+        reflected = np.isfinite(extra)
+        los = paths.los
+        nlos = ~los & reflected
+
+        # Signal strength and tracking.
+        mp = self.config.multipath
+        noise = self.config.noise
+        cn0 = noise.cn0(el) + np.where(nlos, 20.0 * np.log10(mp.reflection_amplitude), 0.0)
+        cn0 = cn0 + noise.cn0_jitter_db * self._cn0_rng.standard_normal(len(view))
+        tracked = (los | nlos) & (cn0 >= noise.tracking_threshold_dbhz)
+        if any(w.start_s <= t < w.end_s for w in self.config.forced_outages):
+            tracked[:] = False
+
+        # Pseudoranges.
+        bias = np.zeros(len(view))
+        bias[nlos] = extra[nlos]
+        los_mp = los & reflected
+        if los_mp.any():
+            bias[los_mp] = code_multipath_error(
+                extra[los_mp], mp.reflection_amplitude, mp.correlator_spacing_chips,
+                2.0 * np.pi * extra[los_mp] / L1_WAVELENGTH_M,
+            )
+        bias += self._forced_bias(t, view, dirs)
+        slow, white = self._errors.advance(t)
+        mapping = 1.0 / np.sin(el)
+        pseudorange = geometric + self._errors.clock_m(t) + mapping * (slow[view] + white[view]) + bias
+
+        solution = None
+        if tracked.sum() >= 4:
+            if self._start is None:
+                self._start = np.zeros(4)
+            solution = wls.solve(sat_enu[tracked], pseudorange[tracked], noise.sigma(el[tracked]), self._start)
+            self._start = np.append(solution.enu, solution.clock_m)
+        enu, velocity, quality = self._navigate(t, solution)
+
+        prn = self.constellation.prn[view].tolist()
+        az = (np.rad2deg(np.arctan2(dirs[:, 0], dirs[:, 1])) % 360.0).tolist()
+        used = tracked if solution is not None else np.zeros(len(view), dtype=bool)
+        snr = np.where(tracked, cn0, 0.0).tolist()
+        sats = tuple(map(SatelliteReport, prn, az, np.rad2deg(el).tolist(), snr, used.tolist()))
+        sat_truth = tuple(map(SatelliteTruth, prn, los.tolist(), nlos.tolist(), bias.tolist()))
+        lat, lon, alt = geo.frame.geodetic_of_enu(enu) if quality else (np.nan, np.nan, np.nan)
+        speed = float(np.hypot(velocity[0], velocity[1]))
+        course = float(np.rad2deg(np.arctan2(velocity[0], velocity[1])) % 360.0) if np.isfinite(speed) else np.nan
+        return GnssFix(
+            stamp=t,
+            lat=lat,
+            lon=lon,
+            alt=alt,
+            enu=enu,
+            quality=quality,
+            num_sats=int(used.sum()),
+            hdop=solution.hdop if solution else np.nan,
+            vdop=solution.vdop if solution else np.nan,
+            pdop=solution.pdop if solution else np.nan,
+            sats=sats,
+            utc=utc.isoformat(timespec="microseconds"),
+            truth=FixTruth(enu=antenna, error=enu - antenna, sats=sat_truth),
+            speed_mps=speed,
+            course_deg=course,
+        )
+
+    def _forced_bias(self, t: float, view: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Range biases (m) of the satellites in view from the forced-bias windows active at t."""
+        bias = np.zeros(len(view))
+        for window in self.config.forced_biases:
+            if window.start_s <= t < window.end_s:
+                bias -= dirs @ np.asarray(window.enu_m)
+                if window.prn is not None:
+                    bias[self.constellation.prn[view] == window.prn] += window.range_m
+        return bias
+
+    def _navigate(self, t: float, solution: wls.Solution | None) -> tuple[np.ndarray, np.ndarray, int]:
+        """Reported ENU position, velocity and GGA quality from this epoch's raw solution (or none)."""
+        nothing = np.full(3, np.nan)
+        if self.config.filter_mode == "raw":
+            if solution is None:
+                return nothing, nothing, 0
+            velocity = nothing
+            if self._last_raw_enu is not None and t - self._last_raw_t <= 1.5 / self.rate_hz:
+                velocity = (solution.enu - self._last_raw_enu) / (t - self._last_raw_t)
+            self._last_raw_t, self._last_raw_enu = t, solution.enu
+            return solution.enu.copy(), velocity, 1
+        kf = self._filter
+        kf.predict(t)
+        if solution is not None:
+            kf.update(solution.enu, solution.cov)
+            self._last_raw_t = t
+            return kf.position, kf.velocity, 1
+        if kf.initialised and t - self._last_raw_t <= self.config.coast_limit_s:
+            return kf.position, kf.velocity, 6
+        kf.reset()
+        return nothing, nothing, 0

@@ -1,0 +1,218 @@
+"""NMEA 0183 (v2.3) sentences a GPS receiver writes per epoch (GGA, RMC, GSA, GSV), and a parser.
+
+Talker "GP" (GPS only). Latitude/longitude carry 5 decimals of minutes (~2 cm), time 2 decimals of
+seconds, as common consumer receivers write them. GGA's altitude field holds the fix's altitude
+with a geoid separation of 0 (the worlds' heights are taken as orthometric). The parser checks the
+checksum and decodes the fields back into numbers; `parse_epoch` merges one epoch's sentences.
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import date, datetime, timedelta, timezone
+from functools import reduce
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sim.gnss_fix import GnssFix
+
+TALKER = "GP"
+KNOT_MPS = 1852.0 / 3600.0
+MAX_GSA_PRNS = 12
+SATS_PER_GSV = 4
+
+
+def checksum(body: str) -> str:
+    """XOR of all characters between '$' and '*', as two upper-case hex digits."""
+    return f"{reduce(lambda acc, ch: acc ^ ord(ch), body, 0):02X}"
+
+
+def sentence(body: str) -> str:
+    """'$' + body + '*' + checksum."""
+    return f"${body}*{checksum(body)}"
+
+
+def _num(value: float, fmt: str) -> str:
+    return "" if value is None or not math.isfinite(value) else format(value, fmt)
+
+
+def _angle(value: float, degree_digits: int, hemispheres: str) -> tuple[str, str]:
+    """(d)ddmm.mmmmm and hemisphere letter, rounded so that minutes never print as 60."""
+    if not math.isfinite(value):
+        return "", ""
+    total = round(abs(value) * 60.0 * 1e5)
+    degrees, minutes = divmod(total, 60 * 100_000)
+    return f"{degrees:0{degree_digits}d}{minutes / 1e5:08.5f}", hemispheres[0] if value >= 0 else hemispheres[1]
+
+
+def _utc(fix: GnssFix) -> datetime:
+    """The fix's UTC rounded to the 0.01 s that NMEA carries."""
+    when = datetime.fromisoformat(fix.utc) + timedelta(microseconds=5000)
+    return when.replace(microsecond=when.microsecond // 10_000 * 10_000)
+
+
+def _time(when: datetime) -> str:
+    return f"{when:%H%M%S}.{when.microsecond // 10_000:02d}"
+
+
+def gga(fix: GnssFix) -> str:
+    """Fix data: time, position, quality, satellites used, HDOP, altitude."""
+    valid = fix.quality != 0
+    lat, ns = _angle(fix.lat if valid else math.nan, 2, "NS")
+    lon, ew = _angle(fix.lon if valid else math.nan, 3, "EW")
+    alt = _num(fix.alt if valid else math.nan, ".2f")
+    body = (
+        f"{TALKER}GGA,{_time(_utc(fix))},{lat},{ns},{lon},{ew},{fix.quality:d},{fix.num_sats:02d},"
+        f"{_num(fix.hdop, '.2f')},{alt},M,{'0.0' if alt else ''},M,,"
+    )
+    return sentence(body)
+
+
+def rmc(fix: GnssFix) -> str:
+    """Recommended minimum: time, status, position, speed over ground (knots), course, date, mode."""
+    when = _utc(fix)
+    valid = fix.quality != 0
+    lat, ns = _angle(fix.lat if valid else math.nan, 2, "NS")
+    lon, ew = _angle(fix.lon if valid else math.nan, 3, "EW")
+    speed = _num(fix.speed_mps / KNOT_MPS if valid else math.nan, ".3f")
+    course = _num(fix.course_deg if valid else math.nan, ".2f")
+    mode = {0: "N", 1: "A", 6: "E"}.get(fix.quality, "A")
+    body = (
+        f"{TALKER}RMC,{_time(when)},{'A' if valid else 'V'},{lat},{ns},{lon},{ew},{speed},{course},"
+        f"{when:%d%m%y},,,{mode}"
+    )
+    return sentence(body)
+
+
+def gsa(fix: GnssFix) -> str:
+    """DOP and the satellites used (at most 12 listed); fix type 3 when a 3-D solution was computed."""
+    used = [s.prn for s in fix.sats if s.used][:MAX_GSA_PRNS]
+    fix_type = 3 if math.isfinite(fix.pdop) and used else 1
+    prns = [f"{p:02d}" for p in used] + [""] * (MAX_GSA_PRNS - len(used))
+    body = f"{TALKER}GSA,A,{fix_type},{','.join(prns)},{_num(fix.pdop, '.2f')},{_num(fix.hdop, '.2f')},{_num(fix.vdop, '.2f')}"
+    return sentence(body)
+
+
+def gsv(fix: GnssFix) -> list[str]:
+    """Satellites in view, four per sentence: PRN, elevation, azimuth (deg), SNR (dB-Hz, empty if not tracked)."""
+    sats = sorted(fix.sats, key=lambda s: s.prn)
+    total = max(1, math.ceil(len(sats) / SATS_PER_GSV))
+    out = []
+    for index in range(total):
+        chunk = sats[index * SATS_PER_GSV:(index + 1) * SATS_PER_GSV]
+        fields = [
+            f"{s.prn:02d},{round(s.el_deg):02d},{round(s.az_deg) % 360:03d},{'' if s.snr <= 0 else f'{round(s.snr):02d}'}"
+            for s in chunk
+        ]
+        out.append(sentence(",".join([f"{TALKER}GSV,{total},{index + 1},{len(sats):02d}", *fields])))
+    return out
+
+
+def fix_sentences(fix: GnssFix) -> list[str]:
+    """All sentences of one epoch in the order receivers write them: GGA, RMC, GSA, GSV..."""
+    return [gga(fix), rmc(fix), gsa(fix), *gsv(fix)]
+
+
+# ---------------------------------------------------------------------------------------- parsing
+
+def parse(line: str) -> dict:
+    """Decode one sentence into a dict ('type' plus typed fields); ValueError on a bad checksum or format."""
+    text = line.strip()
+    if not text.startswith("$") or "*" not in text:
+        raise ValueError(f"nmea: not a sentence: {text!r}")
+    body, _, given = text[1:].rpartition("*")
+    if given.upper() != checksum(body):
+        raise ValueError(f"nmea: checksum {given!r} does not match {checksum(body)} in {text!r}")
+    fields = body.split(",")
+    kind = fields[0][2:]
+    decoder = _DECODERS.get(kind)
+    if decoder is None:
+        raise ValueError(f"nmea: unsupported sentence type {fields[0]!r}")
+    try:
+        return {"type": kind, **decoder(fields[1:])}
+    except (IndexError, ValueError) as exc:
+        raise ValueError(f"nmea: malformed {kind} sentence {text!r}: {exc}") from None
+
+
+def _float(field: str) -> float:
+    return float(field) if field else math.nan
+
+
+def _coord(value: str, hemisphere: str, degree_digits: int) -> float:
+    if not value:
+        return math.nan
+    degrees = int(value[:degree_digits]) + float(value[degree_digits:]) / 60.0
+    return -degrees if hemisphere in ("S", "W") else degrees
+
+
+def _seconds_of_day(value: str) -> float:
+    return int(value[0:2]) * 3600 + int(value[2:4]) * 60 + float(value[4:])
+
+
+def _gga(f: list[str]) -> dict:
+    return {
+        "seconds_of_day": _seconds_of_day(f[0]),
+        "lat": _coord(f[1], f[2], 2),
+        "lon": _coord(f[3], f[4], 3),
+        "quality": int(f[5]),
+        "num_sats": int(f[6]),
+        "hdop": _float(f[7]),
+        "alt": _float(f[8]) + (_float(f[10]) if f[10] else 0.0),
+    }
+
+
+def _rmc(f: list[str]) -> dict:
+    day = date(2000 + int(f[8][4:6]), int(f[8][2:4]), int(f[8][0:2]))
+    return {
+        "seconds_of_day": _seconds_of_day(f[0]),
+        "valid": f[1] == "A",
+        "lat": _coord(f[2], f[3], 2),
+        "lon": _coord(f[4], f[5], 3),
+        "speed_mps": _float(f[6]) * KNOT_MPS,
+        "course_deg": _float(f[7]),
+        "date": day,
+        "mode": f[11] if len(f) > 11 else "",
+    }
+
+
+def _gsa(f: list[str]) -> dict:
+    return {
+        "fix_type": int(f[1]),
+        "prns": [int(p) for p in f[2:2 + MAX_GSA_PRNS] if p],
+        "pdop": _float(f[14]),
+        "hdop": _float(f[15]),
+        "vdop": _float(f[16]),
+    }
+
+
+def _gsv(f: list[str]) -> dict:
+    sats = []
+    for i in range(3, len(f) - 3, 4):
+        prn, el, az, snr = f[i:i + 4]
+        sats.append((int(prn), int(el), int(az), int(snr) if snr else None))
+    return {"total": int(f[0]), "index": int(f[1]), "in_view": int(f[2]), "sats": sats}
+
+
+_DECODERS = {"GGA": _gga, "RMC": _rmc, "GSA": _gsa, "GSV": _gsv}
+
+
+def parse_epoch(lines: list[str]) -> dict:
+    """Merge one epoch's GGA, RMC, GSA and GSV sentences into one dict (utc as an aware datetime)."""
+    out: dict = {"sats": []}
+    for line in lines:
+        msg = parse(line)
+        kind = msg.pop("type")
+        if kind == "GSV":
+            out["sats"].extend(msg["sats"])
+            out["in_view"] = msg["in_view"]
+        elif kind == "GSA":
+            out.update(used=msg["prns"], pdop=msg["pdop"], vdop=msg["vdop"], fix_type=msg["fix_type"])
+        elif kind == "RMC":
+            out.update(date=msg["date"], speed_mps=msg["speed_mps"], course_deg=msg["course_deg"], mode=msg["mode"])
+            out.setdefault("seconds_of_day", msg["seconds_of_day"])
+        else:
+            out.update(msg)
+    if "date" in out and "seconds_of_day" in out:
+        midnight = datetime(out["date"].year, out["date"].month, out["date"].day, tzinfo=timezone.utc)
+        out["utc"] = midnight + timedelta(seconds=out["seconds_of_day"])
+    return out

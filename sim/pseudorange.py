@@ -1,0 +1,75 @@
+"""Pseudorange errors: a receiver clock, slowly varying and white per-satellite errors, C/N0.
+
+A consumer receiver's code error has two parts: a slowly varying one (ionosphere and troposphere
+residuals after the broadcast models, orbit and clock errors) that a position filter cannot
+average out, and white noise from thermal noise and residual multipath. Both grow towards the
+horizon with the obliquity mapping 1/sin(el). The slow part is a first-order Gauss-Markov process
+per satellite; the defaults give an open-sky horizontal CEP50 of about 2.5 m (benchmarks/gnss.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+SPEED_OF_LIGHT = 299_792_458.0
+CLOCK_OFFSET_S = 1e-3
+"""The receiver clock starts up to this far off GPS time (uniform), as a free-running TCXO."""
+CLOCK_DRIFT_SIGMA = 1e-7
+"""Standard deviation of the receiver clock's frequency error (0.1 ppm, dimensionless)."""
+
+
+class PseudorangeNoise(BaseModel):
+    """Elevation-dependent pseudorange error model; sigma(el) = zenith sigma / sin(el)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    white_zenith_m: float = Field(0.6, ge=0.0, description="Zenith sigma of white code noise per epoch, m.")
+    correlated_zenith_m: float = Field(
+        1.5, ge=0.0, description="Zenith sigma of the slowly varying (Gauss-Markov) error per satellite, m."
+    )
+    correlation_time_s: float = Field(
+        300.0, gt=0.0, description="Correlation time of the slowly varying error, s."
+    )
+    cn0_zenith_dbhz: float = Field(48.0, description="Carrier-to-noise density of a direct signal at zenith, dB-Hz.")
+    cn0_horizon_dbhz: float = Field(36.0, description="C/N0 of a direct signal at the horizon, dB-Hz (linear in sin(el)).")
+    cn0_jitter_db: float = Field(1.0, ge=0.0, description="Sigma of the epoch-to-epoch C/N0 fluctuation, dB.")
+    tracking_threshold_dbhz: float = Field(28.0, description="Signals below this C/N0 are not tracked, dB-Hz.")
+
+    @property
+    def off(self) -> bool:
+        return self.white_zenith_m == 0.0 and self.correlated_zenith_m == 0.0
+
+    def sigma(self, el_rad: np.ndarray) -> np.ndarray:
+        """Total one-sigma pseudorange error at elevation el (for weighting), floored at 0.1 m at zenith."""
+        zenith = max(float(np.hypot(self.white_zenith_m, self.correlated_zenith_m)), 0.1)
+        return zenith / np.sin(el_rad)
+
+    def cn0(self, el_rad: np.ndarray) -> np.ndarray:
+        """Nominal C/N0 of a direct signal at elevation el, dB-Hz."""
+        return self.cn0_horizon_dbhz + (self.cn0_zenith_dbhz - self.cn0_horizon_dbhz) * np.sin(el_rad)
+
+
+class RangeErrors:
+    """Stateful pseudorange error source for all satellites of a constellation, advanced per epoch."""
+
+    def __init__(self, noise: PseudorangeNoise, n_sats: int, rng: np.random.Generator):
+        self.noise = noise
+        self.rng = rng
+        self.slow = rng.standard_normal(n_sats) * noise.correlated_zenith_m
+        self.clock_offset_m = rng.uniform(-CLOCK_OFFSET_S, CLOCK_OFFSET_S) * SPEED_OF_LIGHT
+        self.clock_drift = rng.normal(0.0, CLOCK_DRIFT_SIGMA) * SPEED_OF_LIGHT
+        self.t: float | None = None
+
+    def clock_m(self, t: float) -> float:
+        """Receiver clock bias times c at time t, metres."""
+        return self.clock_offset_m + self.clock_drift * t
+
+    def advance(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Step the slow errors to time t; return (zenith slow error, zenith white error) per satellite."""
+        n = len(self.slow)
+        if self.t is not None:
+            phi = np.exp(-(t - self.t) / self.noise.correlation_time_s)
+            self.slow = phi * self.slow + np.sqrt(1.0 - phi * phi) * self.noise.correlated_zenith_m * self.rng.standard_normal(n)
+        self.t = t
+        return self.slow, self.rng.standard_normal(n) * self.noise.white_zenith_m

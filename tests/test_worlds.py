@@ -239,6 +239,7 @@ def test_canal_straight_stretch_is_straight_and_empty(built):
     ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "deck_width_m": 0}]}, "deck_width_m"),
     ({"bridges": [{"name": "b", "type": "suspension", "station_m": 100.0}]}, "type"),
     ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "length_m": 5}]}, "length_m"),
+    ({"bridges": [{"name": "b", "type": "arch", "station_m": 100.0, "pier_spacing_m": 10, "pier_width_m": 9}]}, "pier_width_m"),
     ({"seed": -1}, "seed"),
 ])
 def test_bad_parameters_name_the_key(overrides, key):
@@ -414,3 +415,23 @@ def test_canal_invariants_over_parameters(width, wall, deck, gate):
             xy, _ = r.at(st_["station_m"])
             t, kind = cast(world, [[*xy, 0.2]], (0, 0, 1))
             assert kind[0] in BRIDGE_KINDS and t[0] + 0.2 == pytest.approx(deck, abs=2e-3)
+
+
+@settings(max_examples=8, deadline=None)
+@given(kind=st.sampled_from(["beam", "arch", "truss"]), station=st.floats(300.0, 1700.0), angle=st.floats(-40.0, 40.0),
+       deck=st.floats(3.0, 15.0), width=st.floats(4.0, 40.0), spacing=st.floats(12.0, 120.0), pier=st.floats(0.5, 4.0))
+def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck, width, spacing, pier):
+    spec = dict(name="b", type=kind, station_m=station, crossing_angle_deg=angle, deck_height_m=deck,
+                deck_width_m=width, pier_spacing_m=spacing, pier_width_m=pier)
+    world = worlds.load("open_river", bridges=[spec], use_cache=False)
+    (placed,) = world.params["structures"]
+    xy, _ = world.route.at(station)
+    t, kind_hit = cast(world, [[*xy, 0.2]], (0, 0, 1))
+    assert kind_hit[0] in BRIDGE_KINDS and t[0] + 0.2 == pytest.approx(deck, abs=2e-3)
+    assert placed["shadow_start_m"] < station < placed["shadow_end_m"]
+    near = np.abs(world.route.s - station) < width + 10
+    angles = np.radians(np.arange(0, 360, 10))
+    dirs = np.c_[np.cos(angles), np.sin(angles), np.zeros_like(angles)]
+    pts = route_points(world, min(2.0, deck - 0.5))[near]
+    t, _ = cast(world, np.repeat(pts, len(dirs), axis=0), np.tile(dirs, (len(pts), 1)))
+    assert t.min() > 3.0

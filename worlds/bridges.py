@@ -15,7 +15,7 @@ from typing import Literal
 
 import numpy as np
 import trimesh
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from worlds.geometry import box, merge, pipe, strip
 from worlds.materials import MATERIALS
@@ -47,6 +47,12 @@ class BridgeSpec(BaseModel):
     truss_height_m: float = Field(5.0, ge=0.0, le=40.0, description="truss: height of the through truss above the deck, m (0 = girders only)")
     girder_depth_m: float = Field(1.6, gt=0.2, le=10.0, description="truss: depth of the steel girders under the road deck, m")
     panel_m: float = Field(6.0, gt=1.0, le=50.0, description="truss: panel length of the truss and bracing, m")
+
+    @model_validator(mode="after")
+    def _piers_fit(self) -> "BridgeSpec":
+        if self.pier_width_m >= self.pier_spacing_m - 2.0:
+            raise ValueError(f"pier_width_m={self.pier_width_m} must be at least 2 m less than pier_spacing_m={self.pier_spacing_m}")
+        return self
 
     def frame(self, route: Route) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Origin (2,), unit axis u (2,) and unit v (2,) of the bridge in ENU."""

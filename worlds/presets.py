@@ -116,7 +116,10 @@ def _charles_buildings(route: Route, scale: float) -> list[BuildingRow]:
 
 
 def charles_river(p: CharlesRiverParams) -> World:
-    """Charles River, BU Bridge to Charlestown Bridge: five bridges, the dam lock, sea walls, downtown blocks."""
+    """Charles River, BU Bridge to Charlestown Bridge: five bridges, the dam lock, sea walls, downtown blocks.
+
+    Approximate real geometry and distances; worlds/charles_river.md says what is approximate.
+    """
     route = _charles_route(p)
     bridges = p.bridges if p.bridges is not None else _charles_bridges(route)
     lock = LockSpec(name="charles_river_dam_lock", station_m=route.station_of((3950.0, 1640.0)), length_m=80.0,

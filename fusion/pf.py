@@ -32,7 +32,8 @@ class PfParams(EstimatorParams):
     n_particles [500]; gps_dof: Student-t degrees of freedom of the GPS likelihood [3];
     accel_sigma / lateral_accel_sigma (m/s^2/sqrt(Hz)) and yaw_accel_sigma_deg as in the ekf
     [0.3, 0.2, 3.0]; resample_ess: resample when the effective sample size falls below this share
-    of n_particles [0.5]; roughen_m / roughen_deg: jitter added to resampled poses [0.02, 0.1];
+    of n_particles [0.5]; resampled poses get a regularising jitter shaped like the posterior
+    (Gaussian kernel, optimal bandwidth) plus roughen_m / roughen_deg [0.02, 0.1];
     seed: of the filter's random stream [0].
     """
 
@@ -175,9 +176,15 @@ class Pf(Estimator):
         ess = 1.0 / float(np.sum(w**2))
         n = self.params.n_particles
         if ess < self.params.resample_ess * n:
+            _, spread = self._mean_cov(self.poses, 2)
             u = (self.rng.random() + np.arange(n)) / n
             idx = np.minimum(np.searchsorted(np.cumsum(w), u), n - 1)
-            jitter = self.rng.standard_normal((n, 3)) * [self.params.roughen_m, self.params.roughen_m, math.radians(self.params.roughen_deg)]
+            # regularised resampling: a kernel shaped like the posterior (optimal Gaussian bandwidth),
+            # plus a floor, so that near-deterministic motion does not collapse the cloud
+            bandwidth = (4.0 / (n * 5.0)) ** (1.0 / 7.0)
+            floor = np.diag([self.params.roughen_m**2, self.params.roughen_m**2, math.radians(self.params.roughen_deg) ** 2])
+            chol = np.linalg.cholesky(bandwidth**2 * spread + floor)
+            jitter = self.rng.standard_normal((n, 3)) @ chol.T
             self.poses = self.poses[idx] + jitter
             self.poses[:, 2] = wrap(self.poses[:, 2])
             self.clones = self.clones[idx] + jitter

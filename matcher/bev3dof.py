@@ -16,18 +16,24 @@ from pydantic import Field
 
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
-from matcher.covariance import covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
-from matcher.motion import deskew, planar, pose_to_xyzrpy, se3_log
+from matcher.covariance import DegeneracyParams, covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
+from matcher.motion import deskew_planar, planar, pose_to_xyzrpy, se3_log, twist_changed
 from matcher.result import MatchResult
 
 
-class Bev3dofParams(MatcherParams):
+class Bev3dofParams(MatcherParams, DegeneracyParams):
     """Settings of the `bev3dof` matcher."""
 
-    pixel_m: float = Field(0.25, gt=0.0, description="image pixel size (default 0.25 m)")
-    extent_m: float = Field(48.0, gt=0.0, description="half side of the square image around the lidar (default 48 m)")
+    pixel_m: float = Field(0.3, gt=0.0, description="image pixel size (default 0.3 m)")
+    extent_m: float = Field(45.0, gt=0.0, description="half side of the square image around the lidar; points outside are dropped (default 45 m)")
     z_min_m: float = Field(-5.0, description="lowest point height in the lidar frame that is drawn (default -5 m)")
     z_max_m: float = Field(25.0, description="highest point height in the lidar frame that is drawn (default 25 m)")
+    image: Literal["vertical", "count"] = Field(
+        "vertical",
+        description="pixel value: 'vertical' = std. dev. of point heights in the pixel (walls, piers, buildings; flat ground and water, "
+        "whose scan-ring pattern moves with the sensor, stay dark), 'count' = log point count (default vertical)",
+    )
+    vertical_clip_m: float = Field(2.0, gt=0.0, description="'vertical' image: height std. dev. clipped at this value (default 2 m)")
     blur_px: float = Field(1.0, ge=0.0, description="Gaussian blur of the image, std. dev. in pixels (default 1)")
     global_method: Literal["fourier_mellin", "yaw_search"] = Field("fourier_mellin", description="global step (default fourier_mellin)")
     yaw_search_step_deg: float = Field(1.0, gt=0.0, description="yaw_search: step (default 1 deg)")
@@ -38,32 +44,52 @@ class Bev3dofParams(MatcherParams):
     ecc_iterations: int = Field(50, ge=1, description="ECC iterations (default 50)")
     ecc_eps: float = Field(1e-5, gt=0.0, description="ECC convergence threshold (default 1e-5)")
     ecc_gauss_px: int = Field(5, ge=1, description="ECC Gaussian pre-filter size, odd pixels (default 5)")
-    deskew_iterations: int = Field(2, ge=1, description="image/register rounds; later rounds de-skew both scans with the new estimate (default 2)")
+    deskew_iterations: int = Field(1, ge=1, description="image/register rounds; later rounds de-skew both scans with the new estimate (default 1)")
     min_correlation: float = Field(0.6, ge=-1.0, le=1.0, description="ECC correlation below which the match fails (default 0.6)")
+    quantization_sigma_px: float = Field(0.1, ge=0.0, description="std. dev. added to x, y (and the matching yaw) for pixel quantisation (default 0.1 px)")
     unobserved_sigma_m: float = Field(1.0, gt=0.0, description="std. dev. reported for z, which the method does not observe (default 1 m)")
     unobserved_sigma_rad: float = Field(0.1, gt=0.0, description="std. dev. reported for roll and pitch (default 0.1 rad)")
-    degenerate_ratio: float = Field(1e-2, gt=0.0, lt=1.0, description="Hessian eigenvalue / largest below which a direction is degenerate (default 0.01)")
-    degenerate_sigma_m: float = Field(1.0, gt=0.0, description="minimum std. dev. along a degenerate direction (m; default 1)")
 
 
 class _Image:
     """Bird's-eye view of one de-skewed scan: log point counts per pixel, blurred (float32)."""
 
-    def __init__(self, cloud: Cloud, twist: np.ndarray | None, p: Bev3dofParams) -> None:
-        self.cloud, self.twist = cloud, twist
-        xyz = deskew(cloud.xyz, cloud.time, twist)
+    def __init__(self, xy: np.ndarray, z: np.ndarray, time: np.ndarray, twist: np.ndarray | None, p: Bev3dofParams) -> None:
+        self.xy, self.z, self.time, self.twist, self.p = xy, z, time, twist, p
         n = int(round(2 * p.extent_m / p.pixel_m))
-        band = (xyz[:, 2] >= p.z_min_m) & (xyz[:, 2] <= p.z_max_m)
-        ij = np.floor((xyz[band, :2] + p.extent_m) / p.pixel_m).astype(np.int64)
+        ij = np.floor((deskew_planar(xy, time, twist) + p.extent_m) * (1.0 / p.pixel_m)).astype(np.int64)
         inside = ((ij >= 0) & (ij < n)).all(axis=1)
-        ij = ij[inside]
-        counts = np.bincount(ij[:, 1] * n + ij[:, 0], minlength=n * n).reshape(n, n)
-        img = np.log1p(counts.astype(np.float32))
+        flat = ij[inside, 1] * n + ij[inside, 0]
+        counts = np.bincount(flat, minlength=n * n)
+        if p.image == "count":
+            img = np.log1p(counts.astype(np.float32)).reshape(n, n)
+        else:
+            zin = z[inside] - z[inside].mean() if inside.any() else z[inside]
+            s1 = np.bincount(flat, weights=zin, minlength=n * n)
+            s2 = np.bincount(flat, weights=zin * zin, minlength=n * n)
+            safe = np.maximum(counts, 1)
+            var = np.clip(s2 / safe - (s1 / safe) ** 2, 0.0, None)
+            img = np.minimum(np.sqrt(var), p.vertical_clip_m).astype(np.float32).reshape(n, n)
         if p.blur_px > 0:
             img = cv2.GaussianBlur(img, (0, 0), p.blur_px)
         self.image = img
         self.points_drawn = int(inside.sum())
-        self.median_range = float(np.median(np.linalg.norm(xyz[band][inside, :2], axis=1))) if inside.any() else 1.0
+
+    @classmethod
+    def of(cls, cloud: Cloud, twist: np.ndarray | None, p: Bev3dofParams) -> "_Image":
+        """Image of the cloud's points inside the height band."""
+        band = (cloud.xyz[:, 2] >= p.z_min_m) & (cloud.xyz[:, 2] <= p.z_max_m)
+        return cls(cloud.xyz[band, :2], cloud.xyz[band, 2], cloud.time[band], twist, p)
+
+    def with_twist(self, twist: np.ndarray | None) -> "_Image":
+        """The same points de-skewed with another twist."""
+        return self if not twist_changed(self.twist, twist, 1.0, 1e-9, 1e-9) else _Image(self.xy, self.z, self.time, twist, self.p)
+
+    @property
+    def mean_range(self) -> float:
+        """Mean horizontal range of the drawn points (a subsample; the lever arm of yaw)."""
+        xy = self.xy[:: max(len(self.xy) // 2000, 1)]
+        return float(np.sqrt((xy**2).sum(axis=1)).mean()) if len(xy) else 1.0
 
 
 def _ncc(a: np.ndarray, b: np.ndarray) -> float:
@@ -86,19 +112,19 @@ class Bev3dof(Matcher):
         self._px2m = np.array([[params.pixel_m, 0, c], [0, params.pixel_m, c], [0, 0, 1.0]])
         self._m2px = np.linalg.inv(self._px2m)
         self._window = cv2.createHanningWindow((n, n), cv2.CV_32F)
+        centres = ((np.arange(n) + 0.5) * params.pixel_m - params.extent_m)[::2]  # every second pixel
+        self._centre_x = np.tile(centres, len(centres))
+        self._centre_y = np.repeat(centres, len(centres))
         self._ref: _Image | None = None
         self._cur: _Image | None = None
 
     def _start(self, cloud: Cloud) -> None:
-        self._ref = _Image(cloud, None, self.p)
+        self._ref = _Image.of(cloud, None, self.p)
 
     def _images(self, cloud: Cloud, twist: np.ndarray | None) -> tuple[_Image, _Image]:
         """Reference and current images, both de-skewed with the same twist (so a wrong twist
         distorts both alike instead of feeding back into the next estimate)."""
-        ref = self._ref
-        if ref.twist is not twist:
-            ref = _Image(ref.cloud, twist, self.p)
-        return ref, _Image(cloud, twist, self.p)
+        return self._ref.with_twist(twist), _Image.of(cloud, twist, self.p)
 
     def _reset(self) -> None:
         self._ref = self._cur = None
@@ -166,22 +192,28 @@ class Bev3dof(Matcher):
             return -1.0, W0
         return float(cc), np.vstack([W.astype(np.float64), [0, 0, 1.0]])
 
-    def _covariance(self, prev: np.ndarray, cur: np.ndarray, W: np.ndarray, T: np.ndarray, rotation_scale: float) -> tuple[np.ndarray, dict]:
-        """Fisher information of the normalised image residual in [x, y, yaw] (right perturbation)."""
+    def _covariance(self, prev: np.ndarray, cur: np.ndarray, W: np.ndarray, T: np.ndarray, mean_range: float) -> tuple[np.ndarray, dict]:
+        """Fisher information of the normalised image residual in [x, y, yaw] (right perturbation),
+        summed over every second pixel in each direction (scaled back; neighbours are correlated)."""
         p = self.p
         warped = self._warped_prev(prev, W)
-        a, b = warped - warped.mean(), cur - cur.mean()
-        a, b = a / max(float(np.linalg.norm(a)), 1e-12), b / max(float(np.linalg.norm(b)), 1e-12)
-        gx = cv2.Sobel(a, cv2.CV_32F, 1, 0, ksize=3) / (8.0 * p.pixel_m)
-        gy = cv2.Sobel(a, cv2.CV_32F, 0, 1, ksize=3) / (8.0 * p.pixel_m)
-        centres = (np.arange(self._n) + 0.5) * p.pixel_m - p.extent_m
-        X, Y = np.meshgrid(centres, centres)
-        J = np.stack([gx.ravel(), gy.ravel(), (gy * X - gx * Y).ravel()], axis=1).astype(np.float64)
-        H = J.T @ J
-        r = (a - b).ravel().astype(np.float64)
+        gx = cv2.Sobel(warped, cv2.CV_32F, 1, 0, ksize=3)[::2, ::2].ravel()
+        gy = cv2.Sobel(warped, cv2.CV_32F, 0, 1, ksize=3)[::2, ::2].ravel()
+        a, b = warped[::2, ::2].ravel(), cur[::2, ::2].ravel()
+        a, b = a - a.mean(), b - b.mean()
+        na, nb = max(float(np.linalg.norm(a)), 1e-12), max(float(np.linalg.norm(b)), 1e-12)
+        support = np.flatnonzero((gx != 0) | (gy != 0))  # pixels without gradient add nothing to H
+        g = 1.0 / (8.0 * p.pixel_m * na)
+        gx, gy = gx[support].astype(np.float64) * g, gy[support].astype(np.float64) * g
+        X, Y = self._centre_x[support], self._centre_y[support]
+        J = np.stack([gx, gy, gy * X - gx * Y], axis=1)
+        H = 4.0 * (J.T @ J)
+        r = (a / na - b / nb).astype(np.float64)
         correlated_px = max(4.0 * np.pi * p.blur_px**2, 1.0)  # residuals are correlated over the blur kernel
-        sigma2 = float(r @ r) / max(r.size - 3, 1) * correlated_px
-        cov3, degeneracy = covariance_from_hessian(H, sigma2, rotation_scale, p.degenerate_ratio, p.degenerate_sigma_m, (False, False, True))
+        sigma2 = 4.0 * float(r @ r) / max(4 * r.size - 3, 1) * correlated_px
+        cov3, degeneracy = covariance_from_hessian(H, sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad, (False, False, True))
+        floor = p.quantization_sigma_px * p.pixel_m
+        cov3 += np.diag([floor**2, floor**2, (floor / max(mean_range, 1.0)) ** 2])  # grid quantisation adds to the image noise
         cov_param = np.diag([0.0, 0.0, p.unobserved_sigma_m**2, p.unobserved_sigma_rad**2, p.unobserved_sigma_rad**2, 0.0])
         idx = [0, 1, 5]
         cov_param[np.ix_(idx, idx)] = cov3
@@ -214,7 +246,7 @@ class Bev3dof(Matcher):
             if cc < p.min_correlation:
                 break
             new_twist = se3_log(self._pose3(W)) / dt
-            if twist is not None and np.abs((new_twist - twist) * dt).max() < 1e-3:
+            if not twist_changed(new_twist, twist, dt):
                 break
             twist = new_twist
             prev, cur = self._images(cloud, twist)
@@ -224,6 +256,6 @@ class Bev3dof(Matcher):
         if cc < p.min_correlation:
             return MatchResult.failure(f"weak correlation peak {cc:.2f} < min_correlation {p.min_correlation}", **info)
         T = self._pose3(W)
-        cov, dinfo = self._covariance(prev.image, cur.image, W, T, cur.median_range)
+        cov, dinfo = self._covariance(prev.image, cur.image, W, T, cur.mean_range)
         info.update(dinfo)
         return MatchResult(T=T, ok=True, cov=cov, n_points=0, seconds=0.0, info=info)

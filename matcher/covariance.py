@@ -5,51 +5,79 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 
 @dataclass(frozen=True)
 class Degeneracy:
-    """Eigen-analysis of the Hessian with rotations scaled to metres at `rotation_scale_m`."""
+    """Eigen-analysis of the information left on translations and on rotations (Schur complements)."""
 
-    eigenvalues: np.ndarray
-    eigenvectors: np.ndarray
-    degenerate: np.ndarray
+    translation_ratios: np.ndarray
+    rotation_ratios: np.ndarray
+    directions: list[np.ndarray]
 
     def as_info(self) -> dict:
         return {
-            "degenerate": bool(self.degenerate.any()),
-            "hessian_eigenvalues": self.eigenvalues.tolist(),
-            "degenerate_directions": self.eigenvectors[:, self.degenerate].T.tolist(),
+            "degenerate": bool(self.directions),
+            "translation_info_ratios": self.translation_ratios.tolist(),
+            "rotation_info_ratios": self.rotation_ratios.tolist(),
+            "degenerate_directions": [d.tolist() for d in self.directions],
         }
+
+
+def _marginal_information(H: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Information on the `keep` parameters after marginalising the others (Schur complement)."""
+    other = ~keep
+    if not other.any():
+        return H[np.ix_(keep, keep)]
+    A, B, C = H[np.ix_(keep, keep)], H[np.ix_(keep, other)], H[np.ix_(other, other)]
+    return A - B @ np.linalg.pinv(C) @ B.T
 
 
 def covariance_from_hessian(
     H: np.ndarray,
     sigma2: float,
-    rotation_scale_m: float,
     degenerate_ratio: float,
     degenerate_sigma_m: float,
+    degenerate_sigma_rad: float,
     is_rotation: tuple[bool, ...] = (False, False, False, True, True, True),
 ) -> tuple[np.ndarray, Degeneracy]:
-    """Covariance of the parameters (default [tx, ty, tz, rx, ry, rz]; `is_rotation` marks angles)
-    from the Gauss-Newton Hessian H of the same parameters (residual variance sigma2). Directions
-    whose eigenvalue (angles expressed as arc length at rotation_scale_m) is below degenerate_ratio x
-    the largest are unconstrained: their standard deviation is raised to at least degenerate_sigma_m
-    (rad x rotation_scale_m for angles)."""
-    D = np.diag([1.0 / rotation_scale_m if rot else 1.0 for rot in is_rotation])
-    n = len(is_rotation)
-    Hs = D @ H @ D
-    Hs = 0.5 * (Hs + Hs.T)
+    """Covariance sigma2 H^-1 of the parameters (default [tx, ty, tz, rx, ry, rz]; `is_rotation`
+    marks angles) from the Gauss-Newton Hessian H of the same parameters.
+
+    Degeneracy is judged separately for translations and rotations, on the information each keeps
+    after marginalising the other: a principal direction whose information is below
+    degenerate_ratio x the strongest of its kind is unconstrained (a straight canal leaves motion
+    along its walls free), and its standard deviation is raised to at least degenerate_sigma_m
+    (translations) or degenerate_sigma_rad (rotations). No variance exceeds those limits either:
+    they stand for "unknown" without making the matrix numerically useless."""
+    rot = np.asarray(is_rotation, bool)
+    limit = np.where(rot, degenerate_sigma_rad, degenerate_sigma_m)
+    D = np.diag(limit)  # scale so that every parameter's "unknown" variance is 1
+    Hs = D @ (0.5 * (H + H.T)) @ D
     lam, V = np.linalg.eigh(Hs)
-    top = max(float(lam[-1]), 0.0)
-    degenerate = lam <= degenerate_ratio * top if top > 0 else np.ones(n, bool)
-    var = np.full(n, degenerate_sigma_m**2)
-    positive = lam > 0
-    var[positive] = sigma2 / lam[positive]
-    var[degenerate] = np.maximum(var[degenerate], degenerate_sigma_m**2)
-    cov_s = (V * var) @ V.T
+    var = np.where(lam > 0, sigma2 / np.where(lam > 0, lam, 1.0), 1.0)
+    cov_s = (V * np.minimum(var, 1.0)) @ V.T
+    ratios, directions = {}, []
+    for kind in (False, True):
+        keep = rot == kind
+        if not keep.any():
+            ratios[kind] = np.zeros(0)
+            continue
+        info = _marginal_information(H, keep)
+        mu, U = np.linalg.eigh(0.5 * (info + info.T))
+        top = max(float(mu[-1]), 0.0)
+        ratios[kind] = mu / top if top > 0 else np.zeros_like(mu)
+        for i in np.flatnonzero(ratios[kind] < degenerate_ratio) if keep.sum() > 1 else []:
+            v = np.zeros(len(rot))
+            v[keep] = U[:, i]
+            directions.append(v)
+            vs = v / limit  # the same direction in the scaled parameters
+            vs /= np.linalg.norm(vs)
+            current = float(vs @ cov_s @ vs)
+            cov_s += max(1.0 - current, 0.0) * np.outer(vs, vs)
     cov = D @ cov_s @ D
-    return 0.5 * (cov + cov.T), Degeneracy(lam, V, degenerate)
+    return 0.5 * (cov + cov.T), Degeneracy(ratios[False], ratios[True], directions)
 
 
 def to_xyzrpy(cov_param: np.ndarray, J: np.ndarray) -> np.ndarray:
@@ -72,3 +100,15 @@ def right_perturbation_jacobian(T: np.ndarray) -> np.ndarray:
     J[:3, :3] = T[:3, :3]
     J[3:, 3:] = T[:3, :3]
     return J
+
+
+class DegeneracyParams(BaseModel):
+    """Settings of the covariance's degeneracy handling (matchers with a Hessian)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    degenerate_ratio: float = Field(
+        0.01, gt=0.0, lt=1.0, description="marginal information / strongest of its kind below which a direction is degenerate (default 0.01)"
+    )
+    degenerate_sigma_m: float = Field(1.0, gt=0.0, description="std. dev. of a degenerate (unknown) translation direction (default 1 m)")
+    degenerate_sigma_rad: float = Field(0.1, gt=0.0, description="std. dev. of a degenerate (unknown) rotation direction (default 0.1 rad)")

@@ -10,12 +10,12 @@ from pydantic import Field
 
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
-from matcher.covariance import covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
+from matcher.covariance import DegeneracyParams, covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
 from matcher.motion import deskew, se3_log
 from matcher.result import MatchResult
 
 
-class GicpParams(MatcherParams):
+class GicpParams(MatcherParams, DegeneracyParams):
     """Settings of the `gicp` matcher."""
 
     registration_type: Literal["GICP", "PLANE_ICP", "ICP"] = Field("GICP", description="small_gicp factor (default GICP)")
@@ -26,8 +26,6 @@ class GicpParams(MatcherParams):
     num_threads: int = Field(2, ge=1, description="threads for small_gicp (default 2)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
     min_inlier_share: float = Field(0.3, ge=0.0, le=1.0, description="fail when fewer source points find a partner (default 0.3)")
-    degenerate_ratio: float = Field(1e-2, gt=0.0, lt=1.0, description="Hessian eigenvalue / largest below which a direction is degenerate (default 0.01)")
-    degenerate_sigma_m: float = Field(1.0, gt=0.0, description="minimum std. dev. along a degenerate direction (m; default 1)")
 
 
 class _Prepared:
@@ -39,7 +37,6 @@ class _Prepared:
         self.points, self.tree = small_gicp.preprocess_points(
             xyz, downsampling_resolution=p.voxel_m, num_neighbors=p.num_neighbors, num_threads=p.num_threads
         )
-        self.median_range = float(np.median(np.linalg.norm(xyz, axis=1))) if len(xyz) else 1.0
 
 
 class Gicp(Matcher):
@@ -103,7 +100,7 @@ class Gicp(Matcher):
         H = H[np.ix_(order, order)]
         dof = max(res.num_inliers - 6, 1)
         sigma2 = 2.0 * res.error / dof
-        cov_param, degeneracy = covariance_from_hessian(H, sigma2, cur.median_range, p.degenerate_ratio, p.degenerate_sigma_m)
+        cov_param, degeneracy = covariance_from_hessian(H, sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
         cov = to_xyzrpy(cov_param, right_perturbation_jacobian(T))
         info.update(degeneracy.as_info(), sigma2=float(sigma2))
         return MatchResult(T=T, ok=True, cov=cov, n_points=0, seconds=0.0, info=info)

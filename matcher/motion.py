@@ -86,6 +86,29 @@ def deskew(xyz: np.ndarray, t: np.ndarray, twist_per_s: np.ndarray | None) -> np
     return rotated + translation
 
 
+def deskew_planar(xy: np.ndarray, t: np.ndarray, twist_per_s: np.ndarray | None) -> np.ndarray:
+    """`deskew` of x, y only, for a planar twist (vx, vy, yaw rate; the rest is ignored)."""
+    if twist_per_s is None or len(xy) == 0:
+        return xy
+    vx, vy, wz = float(twist_per_s[0]), float(twist_per_s[1]), float(twist_per_s[5])
+    if abs(wz) < _SMALL_ANGLE:
+        return xy + np.stack([vx * t, vy * t], axis=1)
+    theta = wz * t
+    s, c = np.sin(theta), np.cos(theta)
+    a, b = s / wz, (1.0 - c) / wz  # integral of the rotating body velocity
+    x = c * xy[:, 0] - s * xy[:, 1] + a * vx - b * vy
+    y = s * xy[:, 0] + c * xy[:, 1] + b * vx + a * vy
+    return np.stack([x, y], axis=1)
+
+
+def twist_changed(a: np.ndarray | None, b: np.ndarray | None, dt: float, tol_m: float = 0.003, tol_rad: float = 3e-4) -> bool:
+    """Whether two twists differ by more than tol_m / tol_rad over dt (a de-skew worth redoing)."""
+    if a is None or b is None:
+        return a is not b
+    d = np.abs((np.asarray(a) - np.asarray(b)) * dt)
+    return bool(d[:3].max() > tol_m or d[3:].max() > tol_rad)
+
+
 class ConstantVelocity:
     """Body twist per second from the last good relative motion; predicts the next one."""
 

@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
-from matcher.covariance import covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
+from matcher.covariance import DegeneracyParams, covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
 from matcher.motion import deskew, planar, se3_log
 from matcher.pointplane import point_to_plane_fit
 from matcher.result import MatchResult
@@ -23,7 +23,7 @@ from matcher.result import MatchResult
 reg = o3d.pipelines.registration
 
 
-class Pcl6dParams(MatcherParams):
+class Pcl6dParams(MatcherParams, DegeneracyParams):
     """Settings of the `pcl6d` matcher."""
 
     voxel_m: float = Field(0.4, gt=0.0, description="voxel filter leaf size for ICP (default 0.4 m)")
@@ -42,7 +42,7 @@ class Pcl6dParams(MatcherParams):
     ransac_confidence: float = Field(0.999, gt=0.0, lt=1.0, description="RANSAC confidence (default 0.999)")
     planar_initial_guess: bool = Field(True, description="keep only x, y, yaw of the pre-alignment as ICP's start (boats stay level; default on)")
     skip_prealign_max_dt_s: float = Field(
-        0.25, ge=0.0, description="skip pre-alignment when the scans are at most this far apart and a motion prior exists (default 0.25 s)"
+        0.25, ge=0.0, description="skip pre-alignment (start ICP from the motion prior, or identity) when scans are at most this far apart (default 0.25 s)"
     )
     skip_icp_min_fitness: float | None = Field(
         None, gt=0.0, le=1.0, description="skip ICP when pre-alignment inlier share reaches this (and RMSE limit holds); None = always run ICP"
@@ -54,8 +54,6 @@ class Pcl6dParams(MatcherParams):
     icp_max_iterations: int = Field(30, ge=1, description="ICP iterations (default 30)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
     min_fitness: float = Field(0.3, ge=0.0, le=1.0, description="fail when fewer source points find a partner (default 0.3)")
-    degenerate_ratio: float = Field(1e-2, gt=0.0, lt=1.0, description="Hessian eigenvalue / largest below which a direction is degenerate (default 0.01)")
-    degenerate_sigma_m: float = Field(1.0, gt=0.0, description="minimum std. dev. along a degenerate direction (m; default 1)")
 
 
 class _Prepared:
@@ -73,7 +71,6 @@ class _Prepared:
         self.points = np.asarray(pcd.points)
         self.normals = np.asarray(pcd.normals)
         self.tree = cKDTree(self.points)
-        self.median_range = float(np.median(np.linalg.norm(self.points, axis=1))) if len(self.points) else 1.0
         self._features: tuple[o3d.geometry.PointCloud, np.ndarray] | None = None
 
     def features(self) -> tuple[o3d.geometry.PointCloud, np.ndarray]:
@@ -151,37 +148,40 @@ class Pcl6d(Matcher):
             res = reg.registration_icp(src.pcd, tgt.pcd, p.icp_max_correspondence_m, init, est, criteria)
         return np.asarray(res.transformation)
 
-    def _align(self, src: _Prepared, tgt: _Prepared, prior: np.ndarray, have_prior: bool, dt: float) -> tuple[np.ndarray, dict]:
+    def _align(self, src: _Prepared, tgt: _Prepared, prior: np.ndarray | None, dt: float) -> tuple[np.ndarray, dict]:
+        """ICP from the motion prior when scans are close in time (identity without a prior: a boat
+        moves little in a revolution); global pre-alignment first when they are not, or when that fails."""
         p = self.p
-        use_prior = have_prior and dt <= p.skip_prealign_max_dt_s
         info: dict = {"prealigned": False, "icp_skipped": False}
-        if use_prior or p.prealign == "none":
-            T = self._icp(src, tgt, prior)
+        if dt <= p.skip_prealign_max_dt_s or p.prealign == "none":
+            T = self._icp(src, tgt, np.eye(4) if prior is None else prior)
             fit = point_to_plane_fit(src.points, T, tgt.points, tgt.normals, tgt.tree, p.icp_max_correspondence_m, p.tukey_k_m)
             if fit.fitness >= p.min_fitness or p.prealign == "none":
                 return T, info
-            info["prior_failed"] = True  # the motion prior led ICP astray: fall back to global pre-alignment
+            info["prior_failed"] = True  # ICP from the prior went astray: fall back to global pre-alignment
         T0, pre = self._prealign(src, tgt)
         info.update(pre, prealigned=True)
         init = planar(T0) if p.planar_initial_guess else T0
-        if p.skip_icp_min_fitness is not None and pre["prealign_fitness"] >= p.skip_icp_min_fitness and pre["prealign_rmse"] <= p.skip_icp_max_rmse_m:
+        if (
+            p.skip_icp_min_fitness is not None
+            and pre["prealign_fitness"] >= p.skip_icp_min_fitness
+            and pre["prealign_rmse"] <= p.skip_icp_max_rmse_m
+        ):
             info["icp_skipped"] = True
             return T0, info
         return self._icp(src, tgt, init), info
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
-        have_prior = self.velocity.twist_per_s is not None
-        T = self.velocity.predict(dt)
         twist = self.velocity.twist_per_s
+        T = None if twist is None else self.velocity.predict(dt)
         ref = self._ref
         for _ in range(p.deskew_iterations):
             cur = _Prepared(cloud, twist, p)
             self._cur = cur
             if len(cur.points) < 10 or len(ref.points) < 10:
                 return MatchResult.failure("too few points after filtering")
-            T, info = self._align(cur, ref, T, have_prior, dt)
-            have_prior = True
+            T, info = self._align(cur, ref, T, dt)
             new_twist = se3_log(T) / dt
             if ref.twist is None:  # the first reference was never de-skewed: use this estimate
                 ref = _Prepared(ref.cloud, new_twist, p)
@@ -193,7 +193,7 @@ class Pcl6d(Matcher):
         info.update(fitness=fit.fitness, outlier_share=fit.outlier_share, points_used=len(cur.points), sigma2=fit.sigma2)
         if fit.fitness < p.min_fitness:
             return MatchResult.failure(f"fitness {fit.fitness:.2f} < min_fitness {p.min_fitness}", **info)
-        cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, cur.median_range, p.degenerate_ratio, p.degenerate_sigma_m)
+        cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
         cov = to_xyzrpy(cov_param, left_perturbation_jacobian(T))
         info.update(degeneracy.as_info())
         return MatchResult(T=T, ok=True, cov=cov, n_points=0, seconds=0.0, info=info)

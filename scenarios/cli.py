@@ -25,7 +25,7 @@ def user_errors() -> Iterator[None]:
     try:
         yield
     except (ValueError, KeyError, OSError, TypeError) as exc:
-        errors.print(f"[bold red]error:[/] {one_line(exc)}", highlight=False)
+        errors.print(f"[bold red]error:[/] {one_line(exc)}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
 
 
@@ -85,5 +85,9 @@ def worlds_export(
     import worlds
 
     with user_errors():
-        worlds.export(worlds.load(name), file)
+        world = worlds.load(name)
+        try:
+            worlds.export(world, file)
+        except OSError as exc:
+            raise OSError(f"cannot write {file}: {exc.strerror or exc}") from exc
     console.print(f"wrote {file}")

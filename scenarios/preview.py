@@ -123,7 +123,8 @@ def draw(world: World, traj: Trajectory, stats: list[RevolutionStats], scan: Sca
 def _draw_parts(ax, world: World) -> None:
     for part in world.parts:
         tri = part.mesh.vertices[part.mesh.faces][:, :, :2]
-        area = np.abs(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+        a, b = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        area = np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
         ax.add_collection(PolyCollection(tri[area > 1e-6], facecolors=KIND_COLOURS[part.kind], edgecolors="none"))
     ax.autoscale_view()
 
@@ -132,7 +133,7 @@ def write_pcd(scan: Scan, path: Path) -> None:
     """The scan as a PCD with intensity, ring and time, readable by PCL, Open3D and CloudCompare."""
     cloud = o3d.t.geometry.PointCloud(o3d.core.Tensor(scan.xyz.astype(np.float32)))
     for field in ("intensity", "time"):
-        cloud.point[field] = o3d.core.Tensor(scan.points[field].reshape(-1, 1))
+        cloud.point[field] = o3d.core.Tensor(np.ascontiguousarray(scan.points[field]).reshape(-1, 1))
     cloud.point["ring"] = o3d.core.Tensor(scan.points["ring"].astype(np.int32).reshape(-1, 1))
     if not o3d.t.io.write_point_cloud(str(path), cloud):
         raise OSError(f"could not write {path}")

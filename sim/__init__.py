@@ -1,9 +1,10 @@
 """Simulation: vessel motion, the HDL-32E LiDAR, the GNSS receiver, seeded random streams."""
 
+from sim.gnss import GnssReceiver
 from sim.gnss_fix import GnssFix
 from sim.lidar import HDL32E
 from sim.rng import stream
 from sim.scan import Scan
 from sim.trajectory import Trajectory
 
-__all__ = ["GnssFix", "HDL32E", "Scan", "Trajectory", "stream"]
+__all__ = ["GnssFix", "GnssReceiver", "HDL32E", "Scan", "Trajectory", "stream"]

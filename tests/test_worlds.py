@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import worlds
@@ -240,6 +240,7 @@ def test_canal_straight_stretch_is_straight_and_empty(built):
     ({"bridges": [{"name": "b", "type": "suspension", "station_m": 100.0}]}, "type"),
     ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "length_m": 5}]}, "length_m"),
     ({"bridges": [{"name": "b", "type": "arch", "station_m": 100.0, "pier_spacing_m": 10, "pier_width_m": 9}]}, "pier_width_m"),
+    ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "pier_spacing_m": 8, "pier_width_m": 5, "crossing_angle_deg": 30}]}, "pier_spacing_m"),
     ({"seed": -1}, "seed"),
 ])
 def test_bad_parameters_name_the_key(overrides, key):
@@ -421,6 +422,10 @@ def test_canal_invariants_over_parameters(width, wall, deck, gate):
 @given(kind=st.sampled_from(["beam", "arch", "truss"]), station=st.floats(300.0, 1700.0), angle=st.floats(-40.0, 40.0),
        deck=st.floats(3.0, 15.0), width=st.floats(4.0, 40.0), spacing=st.floats(12.0, 120.0), pier=st.floats(0.5, 4.0))
 def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck, width, spacing, pier):
+    """The deck is at its clearance over the route; piers keep the clearance that spacing, pier width
+    and the crossing angle leave (mid-span at the station, slanting across a wide deck)."""
+    clearance = spacing / 2 - pier / 2 - abs(np.tan(np.radians(angle))) * (width / 2 + 1.0) - 0.3
+    assume(clearance > 1.2)
     spec = dict(name="b", type=kind, station_m=station, crossing_angle_deg=angle, deck_height_m=deck,
                 deck_width_m=width, pier_spacing_m=spacing, pier_width_m=pier)
     world = worlds.load("open_river", bridges=[spec], use_cache=False)
@@ -434,4 +439,27 @@ def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck,
     dirs = np.c_[np.cos(angles), np.sin(angles), np.zeros_like(angles)]
     pts = route_points(world, min(2.0, deck - 0.5))[near]
     t, _ = cast(world, np.repeat(pts, len(dirs), axis=0), np.tile(dirs, (len(pts), 1)))
-    assert t.min() > 3.0
+    assert t.min() > min(clearance, 3.0)
+
+
+def test_normals_face_out_of_solids_and_up_from_water(built):
+    """Straight up from the route the first face hit looks down at it; straight down, water looks up;
+    sideways, walls and lock walls face the vessel (outward-facing solids, as the GNSS probes assume)."""
+    for world in (built["canal_lock"], built["charles_river"]):
+        import open3d as o3d
+
+        pts = route_points(world, 0.5)
+        for direction in ((0, 0, 1), (0, 0, -1)):
+            rays = np.c_[pts, np.broadcast_to(direction, pts.shape)].astype(np.float32)
+            ans = world.raycasting_scene.cast_rays(o3d.core.Tensor(rays))
+            hit = np.isfinite(ans["t_hit"].numpy())
+            facing = np.einsum("ij,ij->i", ans["primitive_normals"].numpy()[hit], rays[hit, 3:])
+            assert (facing < 0).all(), (world.name, direction, int((facing >= 0).sum()))
+        r = world.route
+        for sign in (1, -1):
+            dirs = np.c_[sign * r.normal_left(r.s), np.zeros(len(r.s))]
+            rays = np.c_[route_points(world, 1.0), dirs].astype(np.float32)
+            ans = world.raycasting_scene.cast_rays(o3d.core.Tensor(rays))
+            hit = np.isfinite(ans["t_hit"].numpy())
+            facing = np.einsum("ij,ij->i", ans["primitive_normals"].numpy()[hit], rays[hit, 3:])
+            assert (facing < 0).mean() > 0.99, (world.name, sign)

@@ -17,7 +17,7 @@ import numpy as np
 import trimesh
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from worlds.geometry import box, merge, pipe, strip
+from worlds.geometry import UP, box, merge, orient, pipe, strip
 from worlds.materials import MATERIALS
 from worlds.route import Route
 from worlds.world import Part
@@ -97,8 +97,17 @@ def _local_box(origin, u, v, center_uvz, size) -> trimesh.Trimesh:
 
 
 def _piers(spec: BridgeSpec, route: Route, origin, u, v, top: float) -> list[trimesh.Trimesh]:
+    """Pier boxes; ValueError when the route (curving or crossing at an angle) passes within 1 m of one."""
     length = spec.deck_width_m + 2.0
     z0 = -spec.pier_base_m
+    near = np.abs(route.s - spec.station_m) < length + 20.0
+    rel = route.xy[near] - origin
+    pu, pv = rel @ u, rel @ v
+    for c in spec.piers_u(route):
+        gap = np.abs(pu - c)[np.abs(pv) <= length / 2]
+        if len(gap) and gap.min() < spec.pier_width_m / 2 + 1.0:
+            raise ValueError(f"bridge {spec.name!r}: pier_spacing_m={spec.pier_spacing_m} puts a pier within 1 m of the route "
+                             f"(crossing_angle_deg={spec.crossing_angle_deg}, deck_width_m={spec.deck_width_m})")
     return [_local_box(origin, u, v, (pu, 0.0, 0.5 * (z0 + top)), (spec.pier_width_m, length, top - z0))
             for pu in spec.piers_u(route)]
 
@@ -141,14 +150,16 @@ def build_beam(spec: BridgeSpec, route: Route) -> list[Part]:
 
 
 def _arch_span(origin, u, v, a: float, b: float, spring: float, crown: float, top: float, half_w: float, n: int = 16) -> list[trimesh.Trimesh]:
-    """Elliptical vault between pier faces a < b (intrados from `spring` to `crown`) and its spandrels up to `top`."""
+    """Elliptical vault between pier faces a < b (intrados from `spring` to `crown`, facing down) and
+    its spandrel walls up to `top` (facing out of the bridge)."""
     uc, half = 0.5 * (a + b), 0.5 * (b - a)
     uu = uc + half * np.cos(np.linspace(np.pi, 0.0, n + 1))
     zz = spring + (crown - spring) * np.sqrt(np.clip(1.0 - ((uu - uc) / half) ** 2, 0.0, 1.0))
     uu[n // 2], zz[n // 2] = uc, crown
     curve = lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(n + 1, vv), z])  # noqa: E731
-    vault = strip(np.stack([curve(-half_w, zz), curve(half_w, zz)]))
-    sides = [strip(np.stack([curve(s * half_w, zz), curve(s * half_w, np.full(n + 1, top))])) for s in (-1, 1)]
+    vault = orient(strip(np.stack([curve(-half_w, zz), curve(half_w, zz)])), -UP)
+    sides = [orient(strip(np.stack([curve(s * half_w, zz), curve(s * half_w, np.full(n + 1, top))])), np.r_[s * v, 0.0])
+             for s in (-1, 1)]
     return [vault, *sides]
 
 

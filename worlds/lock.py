@@ -16,7 +16,7 @@ import trimesh
 from pydantic import BaseModel, ConfigDict, Field
 
 from worlds.channel import Centerline
-from worlds.geometry import box, merge, mesh_from, strip
+from worlds.geometry import box, merge, mesh_from, orient, strip
 from worlds.materials import MATERIALS
 from worlds.route import Route
 from worlds.world import Part
@@ -70,8 +70,8 @@ def _block(line: Centerline, side: str, s0: float, s1: float, off_in: float, off
            z0: float, z1: float, n: int, bottom: bool = False) -> trimesh.Trimesh:
     """Solid following the route between stations s0..s1, `off_in`..`off_out` to one side, z0..z1.
 
-    Inner face, top, outer face and both end caps; the bottom only when asked (under the water
-    it is never seen).
+    Inner face, top, outer face and both end caps, normals pointing out of the solid; the bottom
+    only when asked (under the water it is never seen).
     """
     s = np.linspace(s0, s1, n)
     xy, nl, _, _ = line.sample(s)
@@ -84,10 +84,15 @@ def _block(line: Centerline, side: str, s0: float, s1: float, off_in: float, off
         return np.c_[p, np.full(len(p), z)]
 
     ring = [at(inner, z0), at(inner, z1), at(outer, z1), at(outer, z0)] + ([at(inner, z0)] if bottom else [])
-    faces = [strip(np.stack(ring))]
-    for k in (0, -1):
+    sides = strip(np.stack(ring))
+    mid = np.c_[0.5 * (inner + outer), np.full(n, 0.5 * (z0 + z1))]
+    centroid = np.asarray(sides.triangles_center)
+    nearest = np.argmin(np.linalg.norm(centroid[:, None, :] - mid[None, :, :], axis=2), axis=1)
+    faces = [orient(sides, centroid - mid[nearest])]
+    tangent = np.r_[xy[-1] - xy[0], 0.0]
+    for k, toward in ((0, -tangent), (-1, tangent)):
         quad = np.array([[*inner[k], z0], [*inner[k], z1], [*outer[k], z1], [*outer[k], z0]])
-        faces.append(mesh_from(quad, np.array([[0, 1, 2], [0, 2, 3]])))
+        faces.append(orient(mesh_from(quad, np.array([[0, 1, 2], [0, 2, 3]])), toward))
     return merge(faces)
 
 

@@ -22,11 +22,15 @@ class FilterConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     process_noise_h: float = Field(
-        0.02, gt=0.0, description="Horizontal acceleration noise density of the CV model, m^2/s^3 (low: trusts its model)."
+        0.003, gt=0.0, description="Horizontal acceleration noise density of the CV model, m^2/s^3 (low: trusts its model)."
     )
-    process_noise_v: float = Field(0.005, gt=0.0, description="Vertical acceleration noise density, m^2/s^3.")
+    process_noise_v: float = Field(0.002, gt=0.0, description="Vertical acceleration noise density, m^2/s^3.")
     initial_speed_sigma: float = Field(3.0, gt=0.0, description="Velocity sigma at (re)initialisation, m/s.")
-    min_position_sigma: float = Field(0.5, gt=0.0, description="Floor of a raw fix's position sigma, m.")
+    fix_sigma_m: float = Field(
+        2.5, gt=0.0,
+        description="Added in quadrature per axis to a raw fix's formal covariance: the filter's allowance for "
+        "errors the geometry does not show (slow range errors), m.",
+    )
     innovation_gate: float = Field(
         16.27, gt=0.0, description="Chi-square (3 dof, p=0.001) gate; beyond it a fix's covariance is inflated by d2/gate."
     )
@@ -74,8 +78,7 @@ class CvKalman:
 
     def update(self, enu: np.ndarray, cov: np.ndarray) -> None:
         """Fuse a raw position fix with covariance cov (3x3); initialise on the first one."""
-        floor = self.config.min_position_sigma**2
-        r = cov + floor * _EYE3
+        r = cov + self.config.fix_sigma_m**2 * _EYE3
         if self.x is None:
             self.x = np.concatenate([enu, np.zeros(3)])
             self.p = np.zeros((6, 6))

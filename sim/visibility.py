@@ -1,7 +1,7 @@
 """Signal paths by ray casting against the world mesh: direct line of sight and reflected legs.
 
-All rays of one epoch go to Open3D's RaycastingScene in one batch: two vertical probes that detect
-an antenna inside a solid, one ray per satellite from the antenna (line of sight when it hits
+All rays of one epoch go to Open3D's RaycastingScene in one batch: five probes (up and the four
+horizontal axes) that detect an antenna inside a solid, one ray per satellite from the antenna (line of sight when it hits
 nothing), and two legs per candidate reflection (facade -> satellite must hit nothing; facade ->
 antenna must hit nothing before the antenna).
 """
@@ -17,6 +17,9 @@ from sim.multipath import Reflections
 
 START_OFFSET_M = 1e-3
 """Rays start this far from their origin surface (facade) or antenna to avoid self hits."""
+PROBES = np.array([[0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]], dtype=np.float32)
+"""Inside a closed, outward-facing solid every probe first meets a face from behind. (Down is not a
+probe: parts often overlap the water surface, whose top face then lies inside them.)"""
 
 
 @dataclass(frozen=True)
@@ -36,16 +39,17 @@ def trace(scene: o3d.t.geometry.RaycastingScene, antenna: np.ndarray, directions
           reflections: Reflections) -> SignalPaths:
     """Cast the probes, line-of-sight rays and reflection legs of one epoch in one batch."""
     m, k = len(directions), len(reflections)
-    rays = np.empty((2 + m + 2 * k, 6), dtype=np.float32)
-    rays[:2, :3] = antenna
-    rays[:2, 3:] = ((0.0, 0.0, 1.0), (0.0, 0.0, -1.0))
-    rays[2:2 + m, :3] = antenna + START_OFFSET_M * directions
-    rays[2:2 + m, 3:] = directions
+    p = len(PROBES)
+    rays = np.empty((p + m + 2 * k, 6), dtype=np.float32)
+    rays[:p, :3] = antenna
+    rays[:p, 3:] = PROBES
+    rays[p:p + m, :3] = antenna + START_OFFSET_M * directions
+    rays[p:p + m, 3:] = directions
     leg_length = np.zeros(0)
     if k:
         start = reflections.point + START_OFFSET_M * reflections.normal
-        up = slice(2 + m, 2 + m + k)
-        down = slice(2 + m + k, None)
+        up = slice(p + m, p + m + k)
+        down = slice(p + m + k, None)
         rays[up, :3] = start
         rays[up, 3:] = directions[reflections.sat]
         to_antenna = antenna - start
@@ -54,9 +58,7 @@ def trace(scene: o3d.t.geometry.RaycastingScene, antenna: np.ndarray, directions
         rays[down, 3:] = to_antenna / leg_length[:, None]
     hits = scene.cast_rays(o3d.core.Tensor(rays))
     t_hit = hits["t_hit"].numpy()
-    probe_normals = hits["primitive_normals"].numpy()[:2]
-    # Inside a closed, outward-facing solid both vertical probes first meet a face from behind.
-    inside = bool(np.all(np.isfinite(t_hit[:2])) and np.all(np.einsum("ij,ij->i", probe_normals, rays[:2, 3:]) > 0))
-    los = np.isinf(t_hit[2:2 + m])
-    clear = np.isinf(t_hit[2 + m:2 + m + k]) & (t_hit[2 + m + k:] >= leg_length - START_OFFSET_M)
+    inside = bool(np.isfinite(t_hit[:p]).all() and ((hits["primitive_normals"].numpy()[:p] * PROBES).sum(1) > 0).all())
+    los = np.isinf(t_hit[p:p + m])
+    clear = np.isinf(t_hit[p + m:p + m + k]) & (t_hit[p + m + k:] >= leg_length - START_OFFSET_M)
     return SignalPaths(los=los, reflection_clear=clear, inside_solid=inside)

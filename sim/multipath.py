@@ -47,8 +47,10 @@ class FacadeIndex:
     plus half the cell diagonal of the cell centre, so one dictionary look-up bounds the search.
     """
 
-    def __init__(self, vertices: np.ndarray, normals: np.ndarray, radius_m: float, cell_m: float | None = None):
+    def __init__(self, vertices: np.ndarray, normals: np.ndarray, two_sided: np.ndarray, radius_m: float,
+                 cell_m: float | None = None):
         self.radius_m = float(radius_m)
+        self.two_sided = np.asarray(two_sided, dtype=bool)
         self.cell_m = float(cell_m if cell_m is not None else max(self.radius_m / 4.0, 5.0))
         self.vertices = np.asarray(vertices, dtype=float).reshape(-1, 3, 3)
         self.normals = np.asarray(normals, dtype=float).reshape(-1, 3)
@@ -59,13 +61,19 @@ class FacadeIndex:
 
     @classmethod
     def from_world(cls, world, radius_m: float) -> "FacadeIndex":
-        """Index the facades of a World (parts with gnss_reflective material, vertical faces)."""
+        """Index the facades of a World (parts with gnss_reflective material, vertical faces).
+
+        Faces of a closed (watertight) part reflect only on their outer side; faces of open sheets
+        reflect on both sides.
+        """
         mesh = world.mesh
         reflective = np.array([p.material.gnss_reflective for p in world.parts], dtype=bool)
+        closed = np.array([p.mesh.is_watertight for p in world.parts], dtype=bool)
         normals = np.asarray(mesh.face_normals)
         keep = reflective[world.face_part] & (np.abs(normals[:, 2]) < VERTICAL_NZ)
         keep &= np.asarray(mesh.area_faces) > 1e-6
-        return cls(np.asarray(mesh.triangles)[keep], normals[keep], radius_m)
+        two_sided = ~closed[world.face_part[keep]]
+        return cls(np.asarray(mesh.triangles)[keep], normals[keep], two_sided, radius_m)
 
     def __len__(self) -> int:
         return len(self.normals)
@@ -107,9 +115,9 @@ class FacadeIndex:
             return _no_reflections()
         normal = self.normals[faces]
         signed = normal @ antenna - self.offset[faces]
-        normal = normal * np.sign(signed)[:, None]  # facades reflect on both sides
+        normal = normal * np.sign(signed)[:, None]  # towards the antenna
         dist = np.abs(signed)
-        near = (dist > min_distance_m) & (dist <= self.radius_m)
+        near = (dist > min_distance_m) & (dist <= self.radius_m) & ((signed > 0) | self.two_sided[faces])
         faces, normal, dist = faces[near], normal[near], dist[near]
         cos_in = directions @ normal.T  # (M, F): n.s
         sat, col = np.nonzero(cos_in > 1e-6)

@@ -112,7 +112,8 @@ def test_after_an_outage_the_filter_follows_a_wrong_estimate_and_converges_slowl
             return pose
 
     rx = GnssReceiver(seed=0, noise=gw.NOISE_OFF, forced_outages=[{"start_s": 22.0, "end_s": 32.0}])
-    fixes = {round(t, 1): rx.fix(gw.open_water(), Turn(), t) for t in rx.epochs(90.0)}
+    world, motion = gw.open_water(), Turn()
+    fixes = {round(t, 1): rx.fix(world, motion, t) for t in rx.epochs(90.0)}
     err = {t: np.linalg.norm(f.truth.error[:2]) for t, f in fixes.items()}
     assert err[21.8] < 0.5
     assert err[31.8] > 5.0 and fixes[31.8].quality == 6

@@ -1,0 +1,142 @@
+"""GNSS building blocks: constellation geometry, geodesy, WLS over random geometries, image method."""
+
+from __future__ import annotations
+
+from datetime import timedelta
+
+import numpy as np
+import pymap3d
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import gnss_worlds as gw
+from analytic_worlds import wall_world
+from sim import wls
+from sim.constellation import ALMANAC_EPOCH, INCLINATION, MEAN_MOTION, NODE_RATE, OMEGA_EARTH, RADIUS, Constellation
+from sim.geodesy import LocalFrame
+from sim.multipath import FacadeIndex
+
+
+def test_constellation_is_the_nominal_gps_layout():
+    c = Constellation.nominal()
+    assert len(c) == 31 and len(set(c.prn.tolist())) == 31
+    assert len(set(np.round(np.rad2deg(c.node0), 3).tolist())) == 6  # six orbital planes
+    ecef = c.ecef(0.0)
+    r = np.linalg.norm(ecef, axis=1)
+    np.testing.assert_allclose(r, RADIUS)
+    assert 26_550e3 < RADIUS < 26_570e3
+    period_h = 2 * np.pi / MEAN_MOTION / 3600
+    assert 11.96 < period_h < 11.97  # ~11 h 58 min
+    # Over one orbit each satellite reaches latitude +-55 deg (inclination) and no further.
+    t = np.linspace(0.0, 2 * np.pi / MEAN_MOTION, 400)
+    z = np.array([c.ecef(s)[:, 2] for s in t]) / RADIUS
+    np.testing.assert_allclose(np.abs(z).max(axis=0), np.sin(INCLINATION), atol=2e-4)
+    # The ground track repeats after the node has turned once in the Earth frame: ~9.5 s short of a
+    # sidereal day, as measured for the real constellation (Agnew & Larson 2007: 86154.6 s on average).
+    repeat = 2 * np.pi / (OMEGA_EARTH - NODE_RATE)
+    np.testing.assert_allclose(c.ecef(repeat), ecef, atol=1e-3)
+    assert abs(repeat - 86154.6) < 2.0
+
+
+def test_satellites_in_view_over_boston():
+    frame = LocalFrame.at(*gw.ORIGIN)
+    c = Constellation.nominal()
+    counts = []
+    for hour in range(0, 24, 2):
+        enu = frame.enu_of_ecef(c.ecef(hour * 3600.0))
+        up = enu[:, 2] / np.linalg.norm(enu, axis=1)
+        counts.append(int((up > np.sin(np.deg2rad(12.0))).sum()))
+    assert min(counts) >= 5 and 7 <= np.mean(counts) <= 12
+
+
+def test_validity_window():
+    Constellation.seconds_since_epoch(ALMANAC_EPOCH + timedelta(days=179))
+    with pytest.raises(ValueError, match="validity"):
+        Constellation.seconds_since_epoch(ALMANAC_EPOCH - timedelta(days=181))
+    with pytest.raises(ValueError, match="validity"):
+        Constellation.nominal().ecef(200 * 86400.0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(e=st.floats(-5000, 5000), n=st.floats(-5000, 5000), u=st.floats(-50, 500))
+def test_geodetic_conversion_matches_pymap3d(e, n, u):
+    frame = LocalFrame.at(*gw.ORIGIN)
+    lat, lon, alt = frame.geodetic_of_enu(np.array([e, n, u]))
+    ref = pymap3d.enu2geodetic(e, n, u, *gw.ORIGIN)
+    assert lat == pytest.approx(float(ref[0]), abs=1e-10) and lon == pytest.approx(float(ref[1]), abs=1e-10)
+    assert alt == pytest.approx(float(ref[2]), abs=1e-6)
+    np.testing.assert_allclose(frame.enu_of_ecef(np.array([pymap3d.enu2ecef(e, n, u, *gw.ORIGIN)]))[0], [e, n, u], atol=1e-6)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    n_sats=st.integers(4, 12),
+    seed=st.integers(0, 2**32 - 1),
+    position=st.tuples(st.floats(-3000, 3000), st.floats(-3000, 3000), st.floats(-20, 100)),
+    clock=st.floats(-3e5, 3e5),
+)
+def test_wls_recovers_position_and_clock_over_random_geometries(n_sats, seed, position, clock):
+    rng = np.random.default_rng(seed)
+    az = rng.uniform(0, 360, n_sats)
+    el = rng.uniform(10, 90, n_sats)
+    dirs = np.array([gw.direction(a, e) for a, e in zip(az, el)])
+    q = wls.dop(dirs)
+    if np.sqrt(np.trace(q[:3, :3])) > 50:  # near-degenerate geometry: no receiver would use it
+        return
+    truth = np.array(position)
+    sats = truth + 2.2e7 * dirs
+    pseudorange = np.linalg.norm(sats - truth, axis=1) + clock
+    sol = wls.solve(sats, pseudorange, np.full(n_sats, 3.0), np.zeros(4))
+    np.testing.assert_allclose(sol.enu, truth, atol=1e-3)
+    assert sol.clock_m == pytest.approx(clock, abs=1e-3)
+    np.testing.assert_allclose(sol.q, q, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(sol.cov, 9.0 * q[:3, :3], rtol=1e-6, atol=1e-9)
+
+
+def test_wls_needs_four_satellites():
+    with pytest.raises(ValueError, match=">= 4 satellites"):
+        wls.solve(np.ones((3, 3)), np.ones(3), np.ones(3), np.zeros(4))
+
+
+@pytest.mark.parametrize("distance", [5.0, 12.0, 30.0])
+def test_image_method_extra_path_off_a_wall(distance):
+    # Wall face: the plane y = distance, x in [-100, 1100], z up to the wall top (normal -y).
+    height = 6.0
+    world = wall_world(distance_m=distance, height_m=height)
+    index = FacadeIndex.from_world(world, radius_m=100.0)
+    antenna = np.array([300.0, 0.0, 1.3])
+    az = np.arange(100.0, 260.0, 7.0)  # southern sky: the wall is behind the antenna, its face towards it
+    el = np.array([5.0, 10.0, 20.0, 35.0, 50.0])
+    aa, ee = np.meshgrid(az, el)
+    dirs = np.array([gw.direction(a, e) for a, e in zip(aa.ravel(), ee.ravel())])
+    refl = index.reflections(antenna, dirs)
+    ns = -dirs[:, 1]  # n . s with n = -y
+    grazing = np.arcsin(ns)
+    # The reflection meets the wall at height 1.3 + d tan(el) / cos(az - 180): inside the face if below the top.
+    top = height  # wall_world: the box spans z in [-2, height]
+    hit_height = 1.3 + distance * dirs[:, 2] / ns
+    expected = hit_height <= top
+    got = np.zeros(len(dirs), dtype=bool)
+    got[refl.sat] = True
+    np.testing.assert_array_equal(got, expected)
+    assert expected.any() and (~expected).any() or distance == 5.0
+    np.testing.assert_allclose(refl.extra_m, 2.0 * distance * np.sin(grazing[refl.sat]), rtol=1e-9)
+    # For a vertical wall the grazing angle gives 2 d cos(el) cos(az - az_normal).
+    el_r, az_r = np.deg2rad(ee.ravel()[refl.sat]), np.deg2rad(aa.ravel()[refl.sat] - 180.0)
+    np.testing.assert_allclose(refl.extra_m, 2.0 * distance * np.cos(el_r) * np.cos(az_r), rtol=1e-9)
+    np.testing.assert_allclose(refl.point[:, 1], distance, atol=1e-6)
+    np.testing.assert_allclose(refl.point[:, 2], hit_height[refl.sat], atol=1e-6)
+    # Satellites in the northern sky (behind the wall) have no reflection off it.
+    north = np.array([gw.direction(a, 30.0) for a in (-60.0, 0.0, 60.0)])
+    assert len(index.reflections(antenna, north)) == 0
+
+
+def test_facade_search_is_bounded_by_the_radius():
+    world = wall_world(distance_m=10.0)
+    index = FacadeIndex.from_world(world, radius_m=50.0)
+    assert len(index) > 0
+    assert len(index.near(np.array([300.0, 0.0]))) > 0
+    assert len(index.near(np.array([300.0, -100.0]))) == 0  # 110 m from the face
+    far = index.reflections(np.array([300.0, -100.0, 1.3]), np.array([gw.direction(180.0, 20.0)]))
+    assert len(far) == 0

@@ -1,0 +1,117 @@
+"""NMEA 0183 output: checksums, field formats, and a round trip through the parser."""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import gnss_worlds as gw
+from sim import nmea
+from sim.gnss import GnssReceiver
+from sim.gnss_fix import GnssFix, SatelliteReport
+
+
+def test_checksum_of_the_classic_example():
+    # The GGA example of the NMEA 0183 documentation, checksum *47.
+    assert nmea.checksum("GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,") == "47"
+    parsed = nmea.parse("$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47")
+    assert parsed["lat"] == pytest.approx(48 + 7.038 / 60) and parsed["lon"] == pytest.approx(11 + 31.0 / 60)
+    assert parsed["alt"] == pytest.approx(545.4 + 46.9) and parsed["quality"] == 1 and parsed["num_sats"] == 8
+
+
+def test_parser_rejects_bad_checksums_and_garbage():
+    line = nmea.sentence("GPGSA,A,3,04,05,,,,,,,,,,,2.50,1.30,2.10")
+    nmea.parse(line)
+    with pytest.raises(ValueError, match="checksum"):
+        nmea.parse(line[:-2] + ("00" if line[-2:] != "00" else "01"))
+    with pytest.raises(ValueError, match="checksum"):
+        nmea.parse(line.replace("2.50", "2.51"))
+    with pytest.raises(ValueError, match="not a sentence"):
+        nmea.parse("GPGGA,no dollar")
+
+
+def test_receiver_epoch_sentences_are_valid_and_parse_back():
+    rx = GnssReceiver(seed=2)
+    world, motion = gw.open_water(), gw.Straight(speed=2.0, y=3.0)
+    for t in rx.epochs(3.0):
+        fix = rx.fix(world, motion, t)
+    lines = fix.nmea()
+    assert [line[3:6] for line in lines[:3]] == ["GGA", "RMC", "GSA"]
+    assert all(line[3:6] == "GSV" for line in lines[3:])
+    for line in lines:
+        body, cs = line[1:].split("*")
+        assert cs == nmea.checksum(body) and len(line) <= 82
+    back = nmea.parse_epoch(lines)
+    assert back["lat"] == pytest.approx(fix.lat, abs=1e-7) and back["lon"] == pytest.approx(fix.lon, abs=1e-7)
+    assert back["quality"] == 1 and back["num_sats"] == fix.num_sats
+    assert back["speed_mps"] == pytest.approx(fix.speed_mps, abs=1e-3)
+    assert back["utc"] == datetime.fromisoformat(fix.utc)
+
+
+def _fix(lat, lon, alt, when, quality, sats, hdop, speed, course) -> GnssFix:
+    valid = quality != 0
+    used = sum(s.used for s in sats)
+    return GnssFix(
+        stamp=0.0, lat=lat if valid else math.nan, lon=lon if valid else math.nan, alt=alt if valid else math.nan,
+        enu=np.zeros(3), quality=quality, num_sats=used, hdop=hdop if used >= 4 else math.nan,
+        vdop=1.5 * hdop if used >= 4 else math.nan, pdop=1.8 * hdop if used >= 4 else math.nan,
+        sats=tuple(sats), utc=when.isoformat(), speed_mps=speed, course_deg=course,
+    )
+
+
+satellites = st.lists(
+    st.builds(
+        SatelliteReport,
+        prn=st.integers(1, 32),
+        az_deg=st.floats(0.0, 359.4),
+        el_deg=st.floats(0.0, 90.0),
+        snr=st.one_of(st.just(0.0), st.floats(20.0, 55.0)),
+        used=st.booleans(),
+    ),
+    max_size=16,
+    unique_by=lambda s: s.prn,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    lat=st.floats(-89.999, 89.999),
+    lon=st.floats(-179.999, 179.999),
+    alt=st.floats(-100.0, 5000.0),
+    seconds=st.floats(0.0, 86400.0 * 365),
+    quality=st.sampled_from([0, 1, 6]),
+    sats=satellites,
+    hdop=st.floats(0.5, 30.0),
+    speed=st.floats(0.0, 20.0),
+    course=st.floats(0.0, 359.99),
+)
+def test_round_trip_over_positions_times_and_satellites(lat, lon, alt, seconds, quality, sats, hdop, speed, course):
+    when = datetime(2024, 1, 1, tzinfo=timezone.utc) + timedelta(seconds=seconds)
+    fix = _fix(lat, lon, alt, when, quality, sats, hdop, speed, course)
+    lines = fix.nmea()
+    back = nmea.parse_epoch(lines)
+    assert abs(back["utc"] - when) <= timedelta(milliseconds=5)
+    assert back["quality"] == quality and back["num_sats"] == fix.num_sats
+    if quality:
+        tol = 0.5e-5 / 60 + 1e-12  # 5 decimals of arc minutes
+        assert abs(back["lat"] - lat) <= tol and abs(back["lon"] - lon) <= tol
+        assert back["alt"] == pytest.approx(alt, abs=0.005 + 1e-9)
+        assert back["speed_mps"] == pytest.approx(speed, abs=0.0005 * nmea.KNOT_MPS + 1e-9)
+        assert back["course_deg"] == pytest.approx(course, abs=0.005 + 1e-9)
+        assert back["mode"] == {1: "A", 6: "E"}[quality]
+    else:
+        assert math.isnan(back["lat"]) and math.isnan(back["lon"]) and back["mode"] == "N"
+    if fix.num_sats >= 4:
+        assert back["hdop"] == pytest.approx(hdop, abs=0.005 + 1e-9)
+    assert back["used"] == [s.prn for s in sats if s.used][:12]
+    assert back["in_view"] == len(sats)
+    expected = sorted((s.prn, round(s.el_deg), round(s.az_deg) % 360, round(s.snr) if s.snr > 0 else None) for s in sats)
+    assert back["sats"] == expected
+    for line in lines:
+        body, cs = line[1:].split("*")
+        assert cs == nmea.checksum(body)

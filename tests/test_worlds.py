@@ -463,3 +463,31 @@ def test_normals_face_out_of_solids_and_up_from_water(built):
             hit = np.isfinite(ans["t_hit"].numpy())
             facing = np.einsum("ij,ij->i", ans["primitive_normals"].numpy()[hit], rays[hit, 3:])
             assert (facing < 0).mean() > 0.99, (world.name, sign)
+
+
+def test_tight_bend_channel_keeps_walls_out_of_the_channel():
+    """A 90 deg bend of radius ~25 m with 60 m to the inner wall: no wall reaches into the channel
+    (every edge or ground vertex above the water is at least its side's width from the route)."""
+    from worlds.channel import ChannelParams, EdgeStretch, build_channel
+    from worlds.route import Route
+    from worlds.world import World
+
+    ang = np.radians(np.linspace(-90, 0, 10))
+    wp = np.r_[[[-300.0, -25.0], [-150.0, -25.0]], np.c_[25 * np.cos(ang), 25 * np.sin(ang)], [[25.0, 150.0], [25.0, 300.0]]]
+    route = Route.from_waypoints(wp, left_m=60.0, right_m=20.0)
+    params = ChannelParams(stretches=[EdgeStretch(side="left", start_m=300, end_m=350, type="bank")])
+    world = World("bend", build_channel(route, params), route, (0.0, 0.0, 0.0))
+    angles = np.radians(np.arange(0, 360, 5))
+    dirs = np.c_[np.cos(angles), np.sin(angles), np.zeros_like(angles)]
+    for z in (0.5, 1.5):
+        pts = route_points(world, z, step=3)
+        t, kind = cast(world, np.repeat(pts, len(dirs), axis=0), np.tile(dirs, (len(pts), 1)))
+        assert t.min() > 20.0 - 0.3, np.unique(kind[t < 19.7])
+    t, kind = cast(world, route_points(world, 0.5), (0, 0, -1))
+    assert (kind == "water").all()
+    dense = np.concatenate([np.linspace(route.xy[k], route.xy[k + 1], 5) for k in range(len(route.xy) - 1)])
+    for side, width in (("left", 60.0), ("right", 20.0)):
+        v = np.concatenate([p.mesh.vertices for p in world.parts if p.name.startswith(side)])
+        v = v[v[:, 2] > 0.1, :2]
+        inside = np.array([np.linalg.norm(dense - q, axis=1).min() for q in v])
+        assert inside.min() > width - 0.5, (side, inside.min())

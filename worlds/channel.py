@@ -49,9 +49,10 @@ class EdgeStyle(BaseModel):
         return _check_material(value)
 
     def profile(self) -> list[tuple[float, float, str, str, str]]:
-        """Segments (offset0, z0, ...) as tuples (offset_end, z_end, role, kind, material) after a start point.
+        """The cross-section as points (offset outward from the edge, z, role, kind, material).
 
-        Returned as a list whose first entry is the start point (offset, z, '', '', '').
+        The first point only starts the polyline (empty role); every later point ends a segment
+        whose surface has that role (part name), part kind and material.
         """
         face = self.material or DEFAULT_MATERIAL[self.type]
         if self.type == "wall":
@@ -166,27 +167,39 @@ def _offset_line(line: Centerline, side: str, s: np.ndarray, offset: float) -> n
 
 
 def build_channel(route: Route, params: ChannelParams) -> list[Part]:
-    """Water surface plus, on each side, edge faces and ground, grouped into parts by role and material."""
+    """Water surface plus, on each side, edge faces and ground, grouped into parts by role and material.
+
+    Each offset line is computed and untangled over the whole side, then cut into the stretches,
+    so a loop that spans a stretch boundary is trimmed too.
+    """
     line = Centerline.of(route, params.end_extension_m)
     s0, s1 = float(line.s[0]), float(line.s[-1])
     groups: dict[tuple[str, str, str, str], list] = {}
     for side in ("left", "right"):
-        for a, b, style in _intervals(side, params, s0, s1):
-            s = _stations(line, a, b, params)
-            _, nl, _, _ = line.sample(s)
+        intervals = _intervals(side, params, s0, s1)
+        s_all = np.unique(np.concatenate([_stations(line, a, b, params) for a, b, _ in intervals]))
+        _, nl_all, _, _ = line.sample(s_all)
+        offset_lines: dict[float, np.ndarray] = {}
+        for a, b, style in intervals:
+            idx = np.flatnonzero((s_all >= a - 1e-9) & (s_all <= b + 1e-9))
+            s, nl = s_all[idx], nl_all[idx]
             outward = np.c_[line.side_sign(side) * nl, np.zeros(len(s))]
             toward = UP - outward
             prof = style.profile()
-            lines = [_offset_line(line, side, s, off) for off, *_ in prof]
+            for off, *_ in prof:
+                if off not in offset_lines:
+                    offset_lines[off] = _offset_line(line, side, s_all, off)
+            lines = [offset_lines[off][idx] for off, *_ in prof]
             for k in range(1, len(prof)):
-                _, _, role, kind, mat = prof[k]
-                (o0, z0), (o1, z1) = prof[k - 1][:2], prof[k][:2]
+                _, z1, role, kind, mat = prof[k]
+                z0 = prof[k - 1][1]
                 seg = np.stack([np.c_[lines[k - 1], np.full(len(s), z0)], np.c_[lines[k], np.full(len(s), z1)]])
                 mesh = strip(seg)
                 if len(mesh.faces):
                     groups.setdefault((side, role, kind, mat), []).append(_oriented(mesh, seg, toward))
-            for end_idx in (0, -1):
-                cap = _cap(prof, [ln[end_idx] for ln in lines], style.below_m)
+            along = np.c_[nl[:, 1], -nl[:, 0], np.zeros(len(s))]
+            for end_idx, facing in ((0, -along[0]), (-1, along[-1])):
+                cap = orient(_cap(prof, [ln[end_idx] for ln in lines], style.below_m), facing)
                 groups.setdefault((side, prof[1][2], prof[1][3], prof[1][4]), []).append(cap)
     water = _water(line, params, s0, s1)
     parts = [Part("water", "water", MATERIALS["water"], water)]
@@ -195,13 +208,12 @@ def build_channel(route: Route, params: ChannelParams) -> list[Part]:
     return parts
 
 
-def _oriented(mesh: trimesh.Trimesh, seg: np.ndarray, toward: np.ndarray):
-    """Orient a two-line strip's faces toward the water and sky (`toward` per station)."""
-    tri = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]
-    centroid = tri.mean(axis=1)[:, :2]
+def _oriented(mesh: trimesh.Trimesh, seg: np.ndarray, toward: np.ndarray) -> trimesh.Trimesh:
+    """Orient a two-line strip's faces toward the water and sky (`toward` given per station)."""
+    centroid = np.asarray(mesh.triangles_center)[:, :2]
     base = seg[0, :, :2]
-    nearest = np.argmin(np.linalg.norm(centroid[:, None, :] - base[None, ::max(1, len(base) // 512), :], axis=2), axis=1)
-    return orient(mesh, toward[::max(1, len(base) // 512)][nearest])
+    nearest = np.argmin(np.linalg.norm(centroid[:, None, :] - base[None, :, :], axis=2), axis=1)
+    return orient(mesh, toward[nearest])
 
 
 def _cap(prof: list[tuple], end_pts: list[np.ndarray], below_m: float) -> trimesh.Trimesh:

@@ -22,6 +22,9 @@ class MatcherParams(GateParams):
     max_range_m: float = Field(100.0, gt=0.0, description="ignore returns farther than this (HDL-32E datasheet: 100 m)")
     max_speed_mps: float = Field(10.0, gt=0.0, description="faster estimated motion is a failed match (default 10 m/s)")
     max_yaw_rate_dps: float = Field(60.0, gt=0.0, description="faster estimated turning is a failed match (default 60 deg/s)")
+    prior_max_age_s: float = Field(
+        1.0, gt=0.0, description="the constant-velocity prior (de-skew, initial guess) is dropped when its last good match is older (default 1 s)"
+    )
 
 
 class Matcher(ABC):
@@ -30,7 +33,8 @@ class Matcher(ABC):
     Template: `register` sanitises the scan, applies the gate, handles the first scan, calls the
     method's `_match`, checks plausibility and keeps the constant-velocity motion prior. A scan
     that passes the gate becomes the new reference even when its match fails (tracking restarts
-    from it, with no motion prior); a gated scan never does."""
+    from it; the motion prior, the vessel's velocity, is kept until it is `prior_max_age_s` old);
+    a gated scan never does."""
 
     name: str = ""
 
@@ -39,6 +43,7 @@ class Matcher(ABC):
         self.gate = ScanGate(params)
         self.velocity = ConstantVelocity()
         self._ref_stamp: float | None = None
+        self._velocity_stamp: float | None = None
 
     def register(self, scan: Scan) -> MatchResult:
         """Relative motion of `scan` against the previous good scan; never raises."""
@@ -64,6 +69,8 @@ class Matcher(ABC):
         dt = cloud.stamp - self._ref_stamp
         if not dt > 0.0:
             return MatchResult.failure(f"scan stamp {cloud.stamp} not after the reference's {self._ref_stamp}", n_points=n)
+        if self._velocity_stamp is not None and cloud.stamp - self._velocity_stamp > p.prior_max_age_s:
+            self.velocity.reset()
         result = self._match(cloud, dt)
         result.n_points = n
         if result.ok:
@@ -72,8 +79,7 @@ class Matcher(ABC):
                 result = MatchResult.failure(reason, n_points=n, **result.info)
         if result.ok:
             self.velocity.update(result.T, dt)
-        else:
-            self.velocity.reset()
+            self._velocity_stamp = cloud.stamp
         self._commit(result.ok)
         self._ref_stamp = cloud.stamp
         return result
@@ -96,7 +102,7 @@ class Matcher(ABC):
         self._start(cloud)
 
     def _forget_reference(self) -> None:
-        self._ref_stamp = None
+        self._ref_stamp = self._velocity_stamp = None
         self.velocity.reset()
         self._reset()
 

@@ -45,7 +45,7 @@ class Bev3dofParams(MatcherParams, DegeneracyParams):
     ecc_eps: float = Field(1e-5, gt=0.0, description="ECC convergence threshold (default 1e-5)")
     ecc_gauss_px: int = Field(5, ge=1, description="ECC Gaussian pre-filter size, odd pixels (default 5)")
     deskew_iterations: int = Field(1, ge=1, description="image/register rounds; later rounds de-skew both scans with the new estimate (default 1)")
-    min_correlation: float = Field(0.6, ge=-1.0, le=1.0, description="ECC correlation below which the match fails (default 0.6)")
+    min_correlation: float = Field(0.85, ge=-1.0, le=1.0, description="ECC correlation below which the match fails (default 0.85)")
     quantization_sigma_px: float = Field(0.1, ge=0.0, description="std. dev. added to x, y (and the matching yaw) for pixel quantisation (default 0.1 px)")
     unobserved_sigma_m: float = Field(1.0, gt=0.0, description="std. dev. reported for z, which the method does not observe (default 1 m)")
     unobserved_sigma_rad: float = Field(0.1, gt=0.0, description="std. dev. reported for roll and pitch (default 0.1 rad)")
@@ -130,7 +130,8 @@ class Bev3dof(Matcher):
         self._ref = self._cur = None
 
     def _commit(self, ok: bool) -> None:
-        self._ref, self._cur = self._cur, None
+        cur = self._cur
+        self._ref, self._cur = (cur if ok else cur.with_twist(self.velocity.twist_per_s)), None
 
     # warps: W maps current-image pixels to previous-image pixels; in metres it is the 2-D pose
     def _warp_of(self, x: float, y: float, yaw: float) -> np.ndarray:

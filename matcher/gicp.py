@@ -23,9 +23,11 @@ class GicpParams(MatcherParams, DegeneracyParams):
     num_neighbors: int = Field(12, ge=5, description="neighbours for per-point covariance estimation (default 12)")
     max_correspondence_m: float = Field(1.0, gt=0.0, description="max point-pair distance (default 1 m)")
     max_iterations: int = Field(30, ge=1, description="optimiser iterations (default 30)")
+    translation_epsilon_m: float = Field(1e-4, gt=0.0, description="convergence: translation update below this (default 0.1 mm)")
+    rotation_epsilon_rad: float = Field(1e-5, gt=0.0, description="convergence: rotation update below this (default 1e-5 rad)")
     num_threads: int = Field(2, ge=1, description="threads for small_gicp (default 2)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
-    min_inlier_share: float = Field(0.3, ge=0.0, le=1.0, description="fail when fewer source points find a partner (default 0.3)")
+    min_inlier_share: float = Field(0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within max_correspondence_m (default 0.8)")
 
 
 class _Prepared:
@@ -57,7 +59,10 @@ class Gicp(Matcher):
         self._ref = self._cur = None
 
     def _commit(self, ok: bool) -> None:
-        self._ref, self._cur = self._cur, None
+        cur = self._cur
+        if not ok and cur.twist is not self.velocity.twist_per_s:  # never keep a scan de-skewed with a failed estimate
+            cur = _Prepared(cur.cloud, self.velocity.twist_per_s, self.p)
+        self._ref, self._cur = cur, None
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
@@ -76,6 +81,8 @@ class Gicp(Matcher):
                 max_correspondence_distance=p.max_correspondence_m,
                 num_threads=p.num_threads,
                 max_iterations=p.max_iterations,
+                rotation_epsilon=p.rotation_epsilon_rad,
+                translation_epsilon=p.translation_epsilon_m,
             )
             T = res.T_target_source
             new_twist = se3_log(T) / dt
@@ -89,7 +96,7 @@ class Gicp(Matcher):
         inlier_share = res.num_inliers / n_src
         info = {
             "converged": bool(res.converged),
-            "iterations": int(res.iterations),
+            "iterations": int(res.iterations),  # of the last de-skew round
             "inlier_share": float(inlier_share),
             "points_used": n_src,
         }

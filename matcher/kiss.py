@@ -26,7 +26,7 @@ class KissIcpParams(MatcherParams):
     convergence: float = Field(1e-4, gt=0.0, description="kiss-icp registration.convergence_criterion (default 1e-4)")
     num_threads: int = Field(2, ge=0, description="kiss-icp registration.max_num_threads (0 = all; default 2)")
     min_overlap: float = Field(
-        0.3, ge=0.0, le=1.0, description="fail when fewer registered points lie within 3 voxels of the previous scan (default 0.3)"
+        0.8, ge=0.0, le=1.0, description="fail when a smaller share of registered points lies within 3 voxels of the previous scan's (default 0.8)"
     )
 
 

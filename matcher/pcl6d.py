@@ -40,6 +40,7 @@ class Pcl6dParams(MatcherParams, DegeneracyParams):
     edge_length_similarity: float = Field(0.9, gt=0.0, lt=1.0, description="edge-length checker similarity (default 0.9)")
     ransac_max_iterations: int = Field(50000, ge=1, description="RANSAC iterations (default 50000)")
     ransac_confidence: float = Field(0.999, gt=0.0, lt=1.0, description="RANSAC confidence (default 0.999)")
+    ransac_seed: int = Field(0, ge=0, description="seed of Open3D's RANSAC sampler, set before each pre-alignment for repeatable runs (default 0)")
     planar_initial_guess: bool = Field(True, description="keep only x, y, yaw of the pre-alignment as ICP's start (boats stay level; default on)")
     skip_prealign_max_dt_s: float = Field(
         0.25, ge=0.0, description="skip pre-alignment (start ICP from the motion prior, or identity) when scans are at most this far apart (default 0.25 s)"
@@ -53,7 +54,8 @@ class Pcl6dParams(MatcherParams, DegeneracyParams):
     tukey_k_m: float = Field(0.15, gt=0.0, description="Tukey robust-kernel width; larger residuals are outliers (default 0.15 m)")
     icp_max_iterations: int = Field(30, ge=1, description="ICP iterations (default 30)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
-    min_fitness: float = Field(0.3, ge=0.0, le=1.0, description="fail when fewer source points find a partner (default 0.3)")
+    min_fitness: float = Field(0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within icp_max_correspondence_m (default 0.8)")
+    max_outlier_share: float = Field(0.2, ge=0.0, le=1.0, description="fail when a larger share of partners lies beyond tukey_k_m (default 0.2)")
 
 
 class _Prepared:
@@ -102,7 +104,10 @@ class Pcl6d(Matcher):
         self._ref = self._cur = None
 
     def _commit(self, ok: bool) -> None:
-        self._ref, self._cur = self._cur, None
+        cur = self._cur
+        if not ok and cur.twist is not self.velocity.twist_per_s:  # never keep a scan de-skewed with a failed estimate
+            cur = _Prepared(cur.cloud, self.velocity.twist_per_s, self.p)
+        self._ref, self._cur = cur, None
 
     def _prealign(self, src: _Prepared, tgt: _Prepared) -> tuple[np.ndarray, dict]:
         """Global alignment from FPFH correspondences; (T, diagnostics)."""
@@ -124,6 +129,7 @@ class Pcl6d(Matcher):
             inliers = reg.evaluate_registration(src_pcd, tgt_pcd, p.ransac_distance_m, res.transformation)
             fitness, rmse, n_in = inliers.fitness, inliers.inlier_rmse, len(inliers.correspondence_set)
         else:
+            o3d.utility.random.seed(p.ransac_seed)
             res = reg.registration_ransac_based_on_correspondence(
                 src_pcd, tgt_pcd, corres, p.ransac_distance_m,
                 reg.TransformationEstimationPointToPoint(False), 3,
@@ -193,6 +199,8 @@ class Pcl6d(Matcher):
         info.update(fitness=fit.fitness, outlier_share=fit.outlier_share, points_used=len(cur.points), sigma2=fit.sigma2)
         if fit.fitness < p.min_fitness:
             return MatchResult.failure(f"fitness {fit.fitness:.2f} < min_fitness {p.min_fitness}", **info)
+        if fit.outlier_share > p.max_outlier_share:
+            return MatchResult.failure(f"outlier share {fit.outlier_share:.2f} > max_outlier_share {p.max_outlier_share}", **info)
         cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
         cov = to_xyzrpy(cov_param, left_perturbation_jacobian(T))
         info.update(degeneracy.as_info())

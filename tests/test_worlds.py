@@ -398,10 +398,12 @@ def test_untangle_leaves_no_loops(radius, offset, turn):
 
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(width=st.floats(16.0, 50.0), wall=st.floats(1.0, 6.0), deck=st.floats(3.2, 8.0), gate=st.sampled_from(["mitre", "lift"]))
-def test_canal_invariants_over_parameters(width, wall, deck, gate):
+@given(width=st.floats(16.0, 50.0), wall=st.floats(1.0, 6.0), deck=st.floats(3.2, 8.0), gate=st.sampled_from(["mitre", "lift"]),
+       chamber_frac=st.floats(0.3, 0.9))
+def test_canal_invariants_over_parameters(width, wall, deck, gate, chamber_frac):
+    chamber = max(5.0, chamber_frac * (width - 2.5))
     world = worlds.load("canal_lock", width_m=width, wall_height_m=wall, bridge_deck_height_m=deck,
-                        lock_gate_type=gate, buildings=False, use_cache=False)
+                        lock_gate_type=gate, lock_chamber_width_m=chamber, buildings=False, use_cache=False)
     t, kind = cast(world, route_points(world, 0.5, step=5), (0, 0, -1))
     assert (kind == "water").all()
     keep = ~structure_stations(world, 15.0)
@@ -411,6 +413,12 @@ def test_canal_invariants_over_parameters(width, wall, deck, gate):
     np.testing.assert_allclose(t, width / 2, atol=0.05)
     walls = np.concatenate([p.mesh.vertices for p in world.parts_of_kind("wall")])
     assert walls[:, 2].max() == pytest.approx(wall)
+    lock = next(s for s in world.params["structures"] if s["type"] == "lock")
+    inside = (r.s > lock["start_m"] + 1) & (r.s < lock["end_m"] - 1)
+    for sign in (1, -1):
+        t, kind = cast(world, route_points(world, 1.0)[inside], np.c_[sign * r.normal_left(r.s[inside]), np.zeros(inside.sum())])
+        assert set(kind) <= {"lock_wall", "lock_gate"} and (t > chamber / 2 - 0.05).all()
+        assert np.isclose(t, chamber / 2, atol=0.05).mean() > 0.5
     for st_ in world.params["structures"]:
         if st_["type"] != "lock":
             xy, _ = r.at(st_["station_m"])

@@ -11,7 +11,7 @@ from pydantic import Field
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.covariance import DegeneracyParams, covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
-from matcher.motion import deskew, se3_log
+from matcher.motion import deskew, se3_log, twist_changed
 from matcher.result import MatchResult
 
 
@@ -25,7 +25,7 @@ class GicpParams(MatcherParams, DegeneracyParams):
     max_iterations: int = Field(30, ge=1, description="optimiser iterations (default 30)")
     translation_epsilon_m: float = Field(1e-4, gt=0.0, description="convergence: translation update below this (default 0.1 mm)")
     rotation_epsilon_rad: float = Field(1e-5, gt=0.0, description="convergence: rotation update below this (default 1e-5 rad)")
-    num_threads: int = Field(2, ge=1, description="threads for small_gicp (default 2)")
+    num_threads: int = Field(1, ge=1, description="threads for small_gicp (default 1: its OpenMP threads spin badly on a busy machine)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
     min_inlier_share: float = Field(0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within max_correspondence_m (default 0.8)")
 
@@ -88,7 +88,7 @@ class Gicp(Matcher):
             new_twist = se3_log(T) / dt
             if ref.twist is None:  # the first reference was never de-skewed: use this estimate
                 ref = _Prepared(ref.cloud, new_twist, p)
-            if twist is not None and np.abs((new_twist - twist) * dt).max() < 1e-3:
+            if not twist_changed(new_twist, twist, dt):
                 break
             twist = new_twist
         self._ref, self._cur = ref, cur

@@ -101,7 +101,7 @@ def deskew_planar(xy: np.ndarray, t: np.ndarray, twist_per_s: np.ndarray | None)
     return np.stack([x, y], axis=1)
 
 
-def twist_changed(a: np.ndarray | None, b: np.ndarray | None, dt: float, tol_m: float = 0.003, tol_rad: float = 3e-4) -> bool:
+def twist_changed(a: np.ndarray | None, b: np.ndarray | None, dt: float, tol_m: float = 0.01, tol_rad: float = 1e-3) -> bool:
     """Whether two twists differ by more than tol_m / tol_rad over dt (a de-skew worth redoing)."""
     if a is None or b is None:
         return a is not b

@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.covariance import DegeneracyParams, covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
-from matcher.motion import deskew, planar, se3_log
+from matcher.motion import deskew, planar, se3_log, twist_changed
 from matcher.pointplane import point_to_plane_fit
 from matcher.result import MatchResult
 
@@ -191,7 +191,7 @@ class Pcl6d(Matcher):
             new_twist = se3_log(T) / dt
             if ref.twist is None:  # the first reference was never de-skewed: use this estimate
                 ref = _Prepared(ref.cloud, new_twist, p)
-            if twist is not None and np.abs((new_twist - twist) * dt).max() < 1e-3:
+            if not twist_changed(new_twist, twist, dt):
                 break
             twist = new_twist
         self._ref = ref

@@ -85,6 +85,9 @@ class GnssConfig(BaseModel):
     rate_hz: float = Field(5.0, ge=1.0, le=10.0, description="Output rate, Hz (1-10).")
     epoch_utc: datetime = Field(DEFAULT_EPOCH, description="UTC at scenario time 0 (satellite geometry).")
     elevation_mask_deg: float = Field(12.0, ge=0.0, lt=90.0, description="Satellites below this are not used, deg.")
+    pdop_mask: float = Field(
+        25.0, gt=1.0, description="Raw solutions with a larger PDOP are discarded (u-blox default 25)."
+    )
     antenna_offset_m: tuple[float, float, float] = Field(
         (0.0, 0.0, 1.3), description="Antenna phase centre on base_link (x fwd, y left, z up), m."
     )
@@ -190,9 +193,12 @@ class GnssReceiver:
                 f"gnss: antenna at ENU ({antenna[0]:.2f}, {antenna[1]:.2f}, {antenna[2]:.2f}) at t={t} s "
                 f"is inside a solid part of world {getattr(world, 'name', '?')!r}"
             )
+        # Shortest clear reflection per satellite: assign longest first so the shortest wins.
         extra = np.full(len(view), np.inf)
-        ok = paths.reflection_clear
-        np.minimum.at(extra, reflections.sat[ok], reflections.extra_m[ok])
+        if len(reflections):
+            ok = np.nonzero(paths.reflection_clear)[0]
+            ok = ok[np.argsort(-reflections.extra_m[ok])]
+            extra[reflections.sat[ok]] = reflections.extra_m[ok]
         reflected = np.isfinite(extra)
         los = paths.los
         nlos = ~los & reflected
@@ -226,6 +232,8 @@ class GnssReceiver:
                 self._start = np.zeros(4)
             solution = wls.solve(sat_enu[tracked], pseudorange[tracked], noise.sigma(el[tracked]), self._start)
             self._start = np.append(solution.enu, solution.clock_m)
+            if solution.pdop > self.config.pdop_mask:
+                solution = None
         enu, velocity, quality = self._navigate(t, solution)
 
         prn = self.constellation.prn[view].tolist()

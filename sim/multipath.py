@@ -21,6 +21,9 @@ CA_CHIP_M = 299_792_458.0 / 1.023e6
 """Length of one C/A code chip, ~293.05 m."""
 VERTICAL_NZ = 0.1
 """Faces with |n_z| below this (within ~6 deg of vertical) count as facades."""
+MIN_FACET_AREA_M2 = 1.0
+"""Smaller faces (truss members, pipes, tessellated curves) scatter diffusely rather than reflect
+specularly: the first Fresnel zone of an L1 reflection at 10-50 m is 1.4-3 m across."""
 
 
 @dataclass(frozen=True)
@@ -55,8 +58,14 @@ class FacadeIndex:
         self.vertices = np.asarray(vertices, dtype=float).reshape(-1, 3, 3)
         self.normals = np.asarray(normals, dtype=float).reshape(-1, 3)
         self.offset = np.einsum("ij,ij->i", self.normals, self.vertices[:, 0])
-        self.edge1 = self.vertices[:, 1] - self.vertices[:, 0]
-        self.edge2 = self.vertices[:, 2] - self.vertices[:, 0]
+        self.origin = self.vertices[:, 0]
+        # In-face test by barycentric coordinates: u = w.a, v = w.b for w = P - v0 (dual basis of the edges).
+        e1 = self.vertices[:, 1] - self.origin
+        e2 = self.vertices[:, 2] - self.origin
+        d11, d12, d22 = (np.einsum("ij,ij->i", x, y) for x, y in ((e1, e1), (e1, e2), (e2, e2)))
+        den = d11 * d22 - d12 * d12
+        self.dual_a = (d22[:, None] * e1 - d12[:, None] * e2) / den[:, None]
+        self.dual_b = (d11[:, None] * e2 - d12[:, None] * e1) / den[:, None]
         self._cells = self._build_cells()
 
     @classmethod
@@ -71,7 +80,7 @@ class FacadeIndex:
         closed = np.array([p.mesh.is_watertight for p in world.parts], dtype=bool)
         normals = np.asarray(mesh.face_normals)
         keep = reflective[world.face_part] & (np.abs(normals[:, 2]) < VERTICAL_NZ)
-        keep &= np.asarray(mesh.area_faces) > 1e-6
+        keep &= np.asarray(mesh.area_faces) >= MIN_FACET_AREA_M2
         two_sided = ~closed[world.face_part[keep]]
         return cls(np.asarray(mesh.triangles)[keep], normals[keep], two_sided, radius_m)
 
@@ -126,22 +135,11 @@ class FacadeIndex:
         d, n, ns = dist[col], normal[col], cos_in[sat, col]
         point = antenna - 2.0 * d[:, None] * n + (d / ns)[:, None] * directions[sat]
         f = faces[col]
-        inside = _inside_triangle(point - self.vertices[f, 0], self.edge1[f], self.edge2[f])
+        w = point - self.origin[f]
+        u = np.einsum("ij,ij->i", w, self.dual_a[f])
+        v = np.einsum("ij,ij->i", w, self.dual_b[f])
+        inside = (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1.0 + 1e-9)
         return Reflections(sat=sat[inside], point=point[inside], normal=n[inside], extra_m=2.0 * (d * ns)[inside])
-
-
-def _inside_triangle(w: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
-    """True where the in-plane vector w = P - v0 has barycentric coordinates inside (e1, e2)."""
-    d11 = np.einsum("ij,ij->i", e1, e1)
-    d12 = np.einsum("ij,ij->i", e1, e2)
-    d22 = np.einsum("ij,ij->i", e2, e2)
-    w1 = np.einsum("ij,ij->i", w, e1)
-    w2 = np.einsum("ij,ij->i", w, e2)
-    den = d11 * d22 - d12 * d12
-    u = (d22 * w1 - d12 * w2) / den
-    v = (d11 * w2 - d12 * w1) / den
-    eps = 1e-9
-    return (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
 
 
 def _no_reflections() -> Reflections:

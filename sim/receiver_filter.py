@@ -86,15 +86,14 @@ class CvKalman:
             self.p[3:, 3:] = self.config.initial_speed_sigma**2 * _EYE3
             return
         y = enu - self.x[:3]
-        s = self.p[:3, :3] + r
-        d2 = float(y @ np.linalg.solve(s, y))
+        s_inv = np.linalg.inv(self.p[:3, :3] + r)
+        d2 = float(y @ s_inv @ y)
         if d2 > self.config.innovation_gate:
-            r = r * (d2 / self.config.innovation_gate)
-            s = self.p[:3, :3] + r
-        gain = np.linalg.solve(s, self.p[:3, :]).T  # (6, 3) = P H^T S^-1, S symmetric
+            s_inv = np.linalg.inv(self.p[:3, :3] + r * (d2 / self.config.innovation_gate))
+        gain = self.p[:, :3] @ s_inv  # P H^T S^-1
         self.x = self.x + gain @ y
-        self.p = self.p - gain @ self.p[:3, :]
-        self.p = 0.5 * (self.p + self.p.T)
+        p = self.p - gain @ self.p[:3, :]
+        self.p = 0.5 * (p + p.T)
 
     @property
     def position(self) -> np.ndarray:

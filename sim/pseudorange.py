@@ -36,10 +36,6 @@ class PseudorangeNoise(BaseModel):
     cn0_jitter_db: float = Field(1.0, ge=0.0, description="Sigma of the epoch-to-epoch C/N0 fluctuation, dB.")
     tracking_threshold_dbhz: float = Field(28.0, description="Signals below this C/N0 are not tracked, dB-Hz.")
 
-    @property
-    def off(self) -> bool:
-        return self.white_zenith_m == 0.0 and self.correlated_zenith_m == 0.0
-
     def sigma(self, el_rad: np.ndarray) -> np.ndarray:
         """Total one-sigma pseudorange error at elevation el (for weighting), floored at 0.1 m at zenith."""
         zenith = max(float(np.hypot(self.white_zenith_m, self.correlated_zenith_m)), 0.1)

@@ -69,7 +69,7 @@ def solve(sat_enu: np.ndarray, pseudorange: np.ndarray, sigma: np.ndarray, start
         normal_inv = np.linalg.inv(hw @ h)
         step = normal_inv @ (hw @ (pseudorange - rng - x[3]))
         x += step
-        if step @ step < CONVERGED_M * rng.min():
+        if step[:3] @ step[:3] < CONVERGED_M * rng.min():  # the clock enters linearly
             break
     # The last step was short: the geometry at its start is the solution's to ~1e-8 rad.
     return Solution(enu=x[:3], clock_m=float(x[3]), q=np.linalg.inv(h.T @ h), cov=normal_inv[:3, :3],

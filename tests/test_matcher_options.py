@@ -1,0 +1,73 @@
+"""Matcher options: global pre-alignment (RANSAC, FGR, Fourier-Mellin, yaw search), GICP fine alignment."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import matcher
+import sim
+import worlds
+from matcher.motion import pose_to_xyzrpy, xyzrpy_to_pose
+from sim.scan import Scan
+
+YAW_DEG = 25.0  # the second scan is turned by this much on top of the true motion
+FAST_TURNS = dict(max_yaw_rate_dps=400.0)  # 25 deg in a revolution is no boat's turn rate
+
+
+@pytest.fixture(scope="module")
+def turned_pair():
+    """Two revolutions at canal_lock's lock; the second rotated about the lidar z axis by YAW_DEG."""
+    world = worlds.load("canal_lock")
+    traj = sim.Trajectory(world, start_m=630.0)
+    lidar = sim.HDL32E(seed=3)
+    a, b = lidar.scan(world, traj, 0.0), lidar.scan(world, traj, 0.1)
+    turn = xyzrpy_to_pose(np.radians([0, 0, 0, 0, 0, YAW_DEG]))  # b's frame turned: points rotate by -YAW
+    pts = b.points.copy()
+    xyz = np.stack([pts["x"], pts["y"], pts["z"]], axis=1).astype(float) @ turn[:3, :3]  # R^T p, row-wise
+    pts["x"], pts["y"], pts["z"] = xyz.T
+    truth = np.linalg.inv(traj.lidar_pose(0.0)) @ traj.lidar_pose(0.1) @ turn
+    return a, Scan(stamp=b.stamp, points=pts), truth
+
+
+def _check(r, truth, t_tol):
+    assert r.ok, r.info.get("reason")
+    e = pose_to_xyzrpy(np.linalg.inv(truth) @ r.T)
+    assert np.linalg.norm(e[:2]) < t_tol and abs(np.degrees(e[5])) < 0.3, e
+
+
+@pytest.mark.parametrize(
+    "params",
+    [dict(prealign="ransac"), dict(prealign="fgr"), dict(prealign="ransac", icp="gicp", icp_max_iterations=100), dict(prealign="ransac", skip_icp_min_fitness=0.5, skip_icp_max_rmse_m=1.0, max_outlier_share=1.0)],
+    ids=["ransac", "fgr", "ransac+gicp", "skip-icp"],
+)
+def test_pcl6d_pre_alignment_recovers_a_turn(params, turned_pair):
+    a, b, truth = turned_pair
+    m = matcher.create("pcl6d", skip_prealign_max_dt_s=0.0, **FAST_TURNS, **params)  # always pre-align
+    m.register(a)
+    r = m.register(b)
+    assert r.info["prealigned"]
+    assert 0.0 <= r.info["prealign_rejected_share"] <= 1.0 and r.info["prealign_putative"] > 10
+    if "skip_icp_min_fitness" in params:
+        assert r.info["icp_skipped"]
+        _check(r, truth, 0.5)  # FPFH + RANSAC alone is coarse
+    else:
+        _check(r, truth, 0.05)
+        assert r.info["outlier_share"] < 0.1
+
+
+@pytest.mark.parametrize("method", ["fourier_mellin", "yaw_search"])
+def test_bev3dof_global_step_recovers_a_turn(method, turned_pair):
+    a, b, truth = turned_pair
+    m = matcher.create("bev3dof", global_method=method, skip_global_max_dt_s=0.0, **FAST_TURNS)
+    m.register(a)
+    r = m.register(b)
+    assert r.info["global"] and r.info["peak"] > 0.85
+    _check(r, truth, 0.15)  # binning a turned scan aliases differently: coarser than straight-on
+
+
+def test_bev3dof_count_image_option_runs(turned_pair):
+    a, b, truth = turned_pair
+    m = matcher.create("bev3dof", image="count", skip_global_max_dt_s=0.0, **FAST_TURNS)
+    m.register(a)
+    _check(m.register(b), truth, 0.15)

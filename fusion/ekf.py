@@ -1,9 +1,13 @@
-"""ekf: extended Kalman filter on (x, y, yaw, body velocities) with a stochastic clone for odometry.
+"""ekf: extended Kalman filter on (x, y, yaw, body velocities, GPS bias) with a stochastic clone for
+odometry.
 
 A match is a relative measurement between the pose at the matcher's reference scan (a cloned copy
 of the state kept since then) and the pose now, with the matcher's full covariance rotated into
 the state by the Jacobian: an along-canal variance leaves that direction to GPS. Between matches,
 and when the matcher fails, the pose follows a constant-velocity model whose covariance grows.
+The receiver's error is time-correlated (its own filter, slowly changing multipath): it is a
+first-order Gauss-Markov bias state with the receiver's HDOP-scaled variance and time constant
+gps_correlation_s, plus a small white part; with gps_correlation_s = 0 fixes are independent.
 """
 
 from __future__ import annotations
@@ -21,8 +25,9 @@ from fusion.monitors import Monitor
 from fusion.observation import FixObservation
 from fusion.params import EstimatorParams
 
-X, Y, TH, V, VL, W, CX, CY, CTH = range(9)
-POSE, CLONE = slice(0, 3), slice(6, 9)
+X, Y, TH, V, VL, W, BX, BY, CX, CY, CTH = range(11)
+N = 11
+POSE, VEL, BIAS, CLONE = slice(0, 3), slice(3, 6), slice(6, 8), slice(8, 11)
 
 
 class EkfParams(EstimatorParams):
@@ -33,6 +38,7 @@ class EkfParams(EstimatorParams):
         [3.0]; position_walk_sigma: extra position random walk, m/sqrt(s) [0.02].
     odom_gate_prob: chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a
         matcher failure [0.999999, gate at 30.7].
+    gps_white_sigma_m: per-axis white part of the GPS error on top of the correlated bias [0.3].
     """
 
     monitor: str = "combined"
@@ -41,18 +47,20 @@ class EkfParams(EstimatorParams):
     yaw_accel_sigma_deg: float = Field(3.0, gt=0)
     position_walk_sigma: float = Field(0.02, ge=0)
     odom_gate_prob: float = Field(0.999999, gt=0.5, lt=1.0)
+    gps_white_sigma_m: float = Field(0.3, gt=0)
 
 
 class Ekf(Estimator):
-    """EKF over [x, y, yaw, v_forward, v_left, yaw_rate, clone_x, clone_y, clone_yaw]."""
+    """EKF over [x, y, yaw, v_forward, v_left, yaw_rate, bias_e, bias_n, clone_x, clone_y, clone_yaw]."""
 
     name = "ekf"
 
     def __init__(self, params: EkfParams, monitor: Monitor) -> None:
         super().__init__(params, monitor)
         self.params: EkfParams = params
-        self.x = np.zeros(9)
-        self.P = np.eye(9)
+        self.x = np.zeros(N)
+        self.P = np.eye(N)
+        self._bias_var = 0.0  # per-axis variance of the receiver's correlated error (from HDOP)
         self._init = False
         self._odom_gate = float(chi2.ppf(params.odom_gate_prob, 3))
 
@@ -63,21 +71,22 @@ class Ekf(Estimator):
     def _initialise(self, alignment: Alignment) -> None:
         self.x[:] = 0.0
         self.x[POSE] = alignment.pose
-        self.P = np.zeros((9, 9))
+        self.P = np.zeros((N, N))
         self.P[POSE, POSE] = alignment.cov
         self.P[V, V] = self.P[VL, VL] = 1.0
         self.P[W, W] = math.radians(10.0) ** 2
         now = self.odometry.pose_at(alignment.stamp)
         velocity = self.odometry.velocity()
-        if velocity is not None:
-            self.x[V:W + 1] = velocity
-            self.P[V, V] = self.P[VL, VL] = 0.25
+        if velocity is not None:  # the last step's rate; as uncertain as the step says, within bounds
+            self.x[V:W + 1] = velocity[0]
+            self.P[V:W + 1, V:W + 1] = np.diag(np.clip(np.diag(velocity[1]), [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))
         clone = alignment.pose
         if now is not None and self.odometry.last_stamp == self._ref_stamp:
             clone = compose(alignment.pose, between(now, self.odometry.last_pose))
         self.x[CLONE] = clone
         self.P[CLONE, CLONE] = alignment.cov
         self.P[CLONE, POSE] = self.P[POSE, CLONE] = alignment.cov
+        self.P[BIAS, BIAS] = np.eye(2) * self._bias_var
         self._init = True
 
     def _predict(self, stamp: float) -> None:
@@ -87,14 +96,14 @@ class Ekf(Estimator):
         p = self.params
         th, v, vl = self.x[TH], self.x[V], self.x[VL]
         c, s = math.cos(th), math.sin(th)
-        F = np.eye(9)
+        F = np.eye(N)
         F[X, TH], F[X, V], F[X, VL] = (-v * s - vl * c) * dt, c * dt, -s * dt
         F[Y, TH], F[Y, V], F[Y, VL] = (v * c - vl * s) * dt, s * dt, c * dt
         F[TH, W] = dt
         self.x[X] += (v * c - vl * s) * dt
         self.x[Y] += (v * s + vl * c) * dt
         self.x[TH] = wrap(th + self.x[W] * dt)
-        Q = np.zeros((9, 9))
+        Q = np.zeros((N, N))
         q_acc = np.array([p.accel_sigma**2, p.lateral_accel_sigma**2, math.radians(p.yaw_accel_sigma_deg) ** 2])
         # white acceleration integrated over dt: velocity dt, position-velocity dt^2/2, position dt^3/3
         G = np.zeros((3, 3))
@@ -107,6 +116,11 @@ class Ekf(Estimator):
         Q[POSE, 3:6] = Qpv
         Q[3:6, POSE] = Qpv.T
         Q[3:6, 3:6] = Qvv
+        if p.gps_correlation_s > 0:
+            rho = math.exp(-dt / p.gps_correlation_s)
+            F[BX, BX] = F[BY, BY] = rho
+            self.x[BIAS] *= rho
+            Q[BIAS, BIAS] = np.eye(2) * self._bias_var * (1.0 - rho**2)
         self.P = F @ self.P @ F.T + Q
 
     def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
@@ -115,7 +129,7 @@ class Ekf(Estimator):
         self.x += K @ y
         self.x[TH] = wrap(self.x[TH])
         self.x[CTH] = wrap(self.x[CTH])
-        A = np.eye(9) - K @ H
+        A = np.eye(N) - K @ H
         self.P = A @ self.P @ A.T + K @ R @ K.T
         self.P = 0.5 * (self.P + self.P.T)
 
@@ -126,7 +140,7 @@ class Ekf(Estimator):
         r_t = rot2(cth).T
         d = self.x[X:Y + 1] - self.x[CX:CY + 1]
         h = np.r_[r_t @ d, wrap(self.x[TH] - cth)]
-        H = np.zeros((3, 9))
+        H = np.zeros((3, N))
         H[:2, X:Y + 1] = r_t
         H[:2, CX:CY + 1] = -r_t
         H[:2, CTH] = drot2(cth).T @ d
@@ -144,27 +158,49 @@ class Ekf(Estimator):
     def _reanchor(self, stamp: float) -> None:
         if not self._init:
             return
-        A = np.eye(9)
+        A = np.eye(N)
         A[CLONE, :] = 0.0
         A[CLONE, POSE] = np.eye(3)
         self.x = A @ self.x
         self.P = A @ self.P @ A.T
 
-    def _gps_model(self) -> tuple[np.ndarray, np.ndarray]:
+    def _correlated(self) -> bool:
+        return self.params.gps_correlation_s > 0
+
+    def _gps_model(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predicted antenna fix, its Jacobian and the measurement noise for this fix."""
         th = self.x[TH]
         h = self.x[X:Y + 1] + rot2(th) @ self.lever
-        H = np.zeros((2, 9))
+        H = np.zeros((2, N))
         H[:, X:Y + 1] = np.eye(2)
         H[:, TH] = drot2(th) @ self.lever
-        return h, H
+        if not self._correlated():
+            return h, H, obs.cov
+        h = h + self.x[BIAS]
+        H[:, BIAS] = np.eye(2)
+        return h, H, np.eye(2) * self.params.gps_white_sigma_m**2
+
+    def _observe_fix(self, obs: FixObservation) -> None:
+        """The receiver's error variance follows its HDOP; the bias keeps its correlation with the rest."""
+        var = float(np.trace(obs.cov)) / 2.0 - self.params.gps_white_sigma_m**2
+        var = max(var, self.params.gps_white_sigma_m**2)
+        if self._correlated() and self._init:
+            if self._bias_var > 0:
+                scale = math.sqrt(var / self._bias_var)
+                self.P[BIAS, :] *= scale
+                self.P[:, BIAS] *= scale
+                self.x[BIAS] *= scale
+            else:  # initialised before any fix: the bias is as uncertain as the receiver's error
+                self.P[BIAS, BIAS] = np.eye(2) * var
+        self._bias_var = var
 
     def _update_fix(self, obs: FixObservation) -> None:
-        h, H = self._gps_model()
-        self._update(obs.xy - h, H, obs.cov)
+        h, H, R = self._gps_model(obs)
+        self._update(obs.xy - h, H, R)
 
-    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray]:
-        h, H = self._gps_model()
-        return h, H @ self.P @ H.T
+    def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        h, H, R = self._gps_model(obs)
+        return h, H @ self.P @ H.T, R
 
     def _heading(self) -> tuple[float, float]:
         return float(self.x[TH]), float(self.P[TH, TH])

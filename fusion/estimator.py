@@ -25,6 +25,8 @@ class Estimator:
     covariance of (x, y, yaw). Inputs it cannot use are recorded in `.events`, never raised."""
 
     name = "estimator"
+    uses_odometry = True
+    """False for an estimator that ignores scan matching (the drive then needs no matcher for it)."""
 
     def __init__(self, params: EstimatorParams, monitor: Monitor) -> None:
         self.params = params
@@ -41,6 +43,7 @@ class Estimator:
         sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)
         self._default_odom_cov = np.diag([sxy**2, sxy**2, sxy**2, syaw**2, syaw**2, syaw**2])
         self._ref_stamp: float | None = None
+        self._last_measured: float | None = None
 
     # ---- public API -------------------------------------------------------------------------
     @property
@@ -75,12 +78,14 @@ class Estimator:
                 self.events.append(Event(float(stamp), "fix", why))
             self.monitor.note_outage(float(stamp))
             return Verdict(False, math.inf if "dead reckoning" in why else math.nan, why)
+        self._observe_fix(obs)
         if not self.initialized:
             self._try_initialise(obs)
-        ctx = self._context()
+        ctx = self._context(obs)
         verdict = self.monitor.check(obs, ctx)
         self.monitor.commit(obs, verdict)
         self._use_fix(obs, verdict)
+        self._last_measured = obs.stamp
         return verdict
 
     def _use_fix(self, obs: FixObservation, verdict: Verdict) -> None:
@@ -180,8 +185,8 @@ class Estimator:
         self._height_var = (1.0 - gain) * var
         self._height_stamp = obs.stamp
 
-    def _context(self) -> FixContext:
-        predicted = self._predicted_antenna() if self.initialized else None
+    def _context(self, obs: FixObservation) -> FixContext:
+        predicted = self._predicted_antenna(obs) if self.initialized else None
         heading = self._heading() if self.initialized else None
         return FixContext(
             predicted=predicted,
@@ -189,6 +194,7 @@ class Estimator:
             yaw_var=None if heading is None else heading[1],
             lever=self.lever,
             odometry=self.odometry,
+            correlation_s=self.params.gps_correlation_s,
         )
 
     def _advance(self, stamp: float) -> None:
@@ -213,7 +219,11 @@ class Estimator:
     def _update_fix(self, obs: FixObservation) -> None:
         raise NotImplementedError
 
-    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def _observe_fix(self, obs: FixObservation) -> None:
+        """Note a measured fix before it is judged (e.g. its HDOP sets the GPS error level)."""
+
+    def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fix the filter expects, the covariance of that prediction and the fix's noise."""
         raise NotImplementedError
 
     def _heading(self) -> tuple[float, float] | None:

@@ -32,6 +32,7 @@ class GpsOnly(Estimator):
     """Pose from the latest receiver output; never uses odometry."""
 
     name = "gps_only"
+    uses_odometry = False
 
     def __init__(self, params: GpsOnlyParams, monitor: Monitor) -> None:
         super().__init__(params, monitor)
@@ -78,9 +79,9 @@ class GpsOnly(Estimator):
         cov[2, 2] = self._yaw_var
         return cov
 
-    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray]:
+    def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         j = drot2(self._yaw) @ self.lever
-        return self._last.xy.copy(), self._last.cov + np.outer(j, j) * self._yaw_var
+        return self._last.xy.copy(), self._last.cov + np.outer(j, j) * self._yaw_var, obs.cov
 
     def _heading(self) -> tuple[float, float]:
         return self._yaw, self._yaw_var

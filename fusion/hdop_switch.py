@@ -127,10 +127,10 @@ class HdopSwitch(Estimator):
     def _cov3(self) -> np.ndarray:
         return self._dead_reckoned()[1]
 
-    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray]:
+    def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         pose, cov = self._dead_reckoned()
         j = drot2(pose[2]) @ self.lever
-        return pose[:2] + rot2(pose[2]) @ self.lever, cov[:2, :2] + np.outer(j, j) * cov[2, 2]
+        return pose[:2] + rot2(pose[2]) @ self.lever, cov[:2, :2] + np.outer(j, j) * cov[2, 2], obs.cov
 
     def _heading(self) -> tuple[float, float]:
         pose, cov = self._dead_reckoned()

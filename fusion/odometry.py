@@ -39,11 +39,12 @@ class OdometryTrack:
     def last_stamp(self) -> float | None:
         return self._stamps[-1] if self._stamps else None
 
-    def velocity(self) -> np.ndarray | None:
-        """Body-frame (v_forward, v_left, yaw_rate) of the last step, or None without one."""
+    def velocity(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Body-frame (v_forward, v_left, yaw_rate) of the last step and its 3x3 covariance, or None."""
         if len(self._stamps) < 2 or self._segments[-1] != self._segments[-2] or self._stamps[-1] <= self._stamps[-2]:
             return None
-        return self._steps[-1] / (self._stamps[-1] - self._stamps[-2])
+        dt = self._stamps[-1] - self._stamps[-2]
+        return self._steps[-1] / dt, self._covs[-1] / dt**2
 
     def anchor(self, stamp: float) -> None:
         """Start a new segment at a reference scan (the matcher's next result is relative to it)."""

@@ -11,12 +11,17 @@ DEFAULT_MOUNT = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 1.8
 class EstimatorParams(BaseModel):
     """Shared estimator parameters (defaults in brackets).
 
-    matcher: name of the matcher whose odometry this estimator uses ["bev3dof"].
+    matcher: name of the matcher whose odometry this estimator uses ["kiss_icp", the most reliable
+        on sparse river scans].
     monitor / monitor_params: GPS integrity monitor and its parameters (default set per estimator).
     mount: 4x4 base_link<-lidar [identity rotation, lidar 1.8 m above base_link].
     antenna: antenna position on base_link, metres [(0, 0, 1.3)].
     uere_m: range error scale; a fix's per-axis sigma is uere_m * HDOP / sqrt(2) [3.0, i.e. about
         2.5 m CEP50 at HDOP 1, a consumer receiver].
+    gps_correlation_s: time constant of the receiver's position error: its own filter and slowly
+        changing multipath make consecutive fixes' errors alike, so a filter weighs a fix as one of
+        every gps_correlation_s / dt, and displacement tests expect a difference variance that
+        grows as 1 - exp(-dt / gps_correlation_s) [10 s; 0 treats fixes as independent].
     accept_dead_reckoning: use the receiver's own dead-reckoned output (GGA 6) as a fix [False].
     initial_pose: (x, y, yaw_deg) of base_link at the first input if known, with initial_sigma
         (metres, degrees) [None, (1.0, 5.0)]; otherwise the pose is found at start-up by aligning
@@ -28,12 +33,13 @@ class EstimatorParams(BaseModel):
     """
 
     model_config = ConfigDict(extra="forbid")
-    matcher: str = Field("bev3dof", min_length=1)
+    matcher: str = Field("kiss_icp", min_length=1)
     monitor: str = "consistency"
     monitor_params: dict = Field(default_factory=dict)
     mount: tuple[tuple[float, float, float, float], ...] = DEFAULT_MOUNT
     antenna: tuple[float, float, float] = (0.0, 0.0, 1.3)
     uere_m: float = Field(3.0, gt=0)
+    gps_correlation_s: float = Field(10.0, ge=0)
     accept_dead_reckoning: bool = False
     initial_pose: tuple[float, float, float] | None = None
     initial_sigma: tuple[float, float] = (1.0, 5.0)

@@ -7,7 +7,10 @@ the process noise since the clone) and the odometry pose (clone + step, with the
 covariance rotated by the clone's heading) are combined, the particle is drawn from the product,
 and weighted by how well the two agreed. So a degenerate odometry direction leaves the particles
 to their motion and to GPS there. A fix reweights with a Student-t likelihood, so one wild fix
-barely moves the cloud and the filter survives wrong fixes without a hard gate.
+barely moves the cloud and the filter survives wrong fixes without a hard gate. The receiver's
+time-correlated error is a Gauss-Markov bias per particle, Rao-Blackwellised: each particle keeps
+its bias mean, all share the bias covariance (the same linear-Gaussian recursion for every one);
+a particle's bias update is down-weighted like the Student-t weighs an outlier.
 """
 
 from __future__ import annotations
@@ -32,9 +35,10 @@ class PfParams(EstimatorParams):
     n_particles [500]; gps_dof: Student-t degrees of freedom of the GPS likelihood [3];
     accel_sigma / lateral_accel_sigma (m/s^2/sqrt(Hz)) and yaw_accel_sigma_deg as in the ekf
     [0.3, 0.2, 3.0]; resample_ess: resample when the effective sample size falls below this share
-    of n_particles [0.5]; resampled poses get a regularising jitter shaped like the posterior
-    (Gaussian kernel, optimal bandwidth) plus roughen_m / roughen_deg [0.02, 0.1];
-    seed: of the filter's random stream [0].
+    of n_particles [0.5]; resampling is regularised (Liu-West shrinkage and a kernel shaped like the
+    posterior, optimal bandwidth) plus a floor roughen_m / roughen_deg [0.02, 0.1];
+    seed: of the filter's random stream [0]; gps_white_sigma_m: white part of the GPS error on top
+    of the correlated bias, per axis [0.3].
     """
 
     monitor: str = "none"
@@ -47,6 +51,7 @@ class PfParams(EstimatorParams):
     roughen_m: float = Field(0.02, ge=0)
     roughen_deg: float = Field(0.1, ge=0)
     seed: int = 0
+    gps_white_sigma_m: float = Field(0.3, gt=0)
 
 
 def _rot_batch(yaw: np.ndarray) -> np.ndarray:
@@ -71,6 +76,9 @@ class Pf(Estimator):
         self.clones = np.zeros((n, 3))
         self.vel = np.zeros((n, 3))
         self.logw = np.full(n, -math.log(n))
+        self.bias = np.zeros((n, 2))  # per-particle mean of the receiver's correlated error
+        self.bias_cov = np.zeros((2, 2))  # its covariance, shared
+        self._bias_var = 0.0
         self._coast_cov = np.zeros((3, 3))  # process spread accumulated since the clone, body frame
         self._clone_stamp = 0.0
         self._init = False
@@ -90,10 +98,10 @@ class Pf(Estimator):
         chol = np.linalg.cholesky(alignment.cov + 1e-12 * np.eye(3))
         self.poses = alignment.pose + self.rng.standard_normal((n, 3)) @ chol.T
         self.poses[:, 2] = wrap(self.poses[:, 2])
-        self.vel = self.rng.normal(0.0, 0.5, (n, 3)) * [1.0, 1.0, 0.1]
         velocity = self.odometry.velocity()
-        if velocity is not None:
-            self.vel += velocity
+        mean, var = (np.zeros(3), np.array([1.0, 1.0, 0.01])) if velocity is None else (velocity[0], np.diag(velocity[1]))
+        sigma = np.sqrt(np.clip(var, [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))  # as uncertain as the last step, within bounds
+        self.vel = mean + self.rng.standard_normal((n, 3)) * sigma
         self.clones = self.poses.copy()
         self._clone_stamp = alignment.stamp
         now = self.odometry.pose_at(alignment.stamp)
@@ -105,6 +113,8 @@ class Pf(Estimator):
             self._clone_stamp = self.odometry.last_stamp
         self._coast_cov = np.zeros((3, 3))
         self.logw = np.full(n, -math.log(n))
+        self.bias = np.zeros((n, 2))
+        self.bias_cov = np.eye(2) * self._bias_var
         self._init = True
 
     def _predict(self, stamp: float) -> None:
@@ -120,6 +130,10 @@ class Pf(Estimator):
         self.poses[:, 2] = wrap(self.poses[:, 2] + body[:, 2])
         self.vel += dv
         self._coast_cov += np.diag(self._q) * dt**3 / 3.0
+        if self._correlated():
+            rho = math.exp(-dt / self.params.gps_correlation_s)
+            self.bias *= rho
+            self.bias_cov = rho**2 * self.bias_cov + np.eye(2) * self._bias_var * (1.0 - rho**2)
 
     def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:
         if not self._init:
@@ -162,11 +176,37 @@ class Pf(Estimator):
         lx, ly = self.lever
         return self.poses[:, :2] + np.column_stack([c * lx - s * ly, s * lx + c * ly])
 
+    def _correlated(self) -> bool:
+        return self.params.gps_correlation_s > 0
+
+    def _observe_fix(self, obs: FixObservation) -> None:
+        """The receiver's error variance follows its HDOP; rescale the bias to the new level."""
+        white = self.params.gps_white_sigma_m**2
+        var = max(float(np.trace(obs.cov)) / 2.0 - white, white)
+        if self._init and self._bias_var > 0:
+            scale = math.sqrt(var / self._bias_var)
+            self.bias *= scale
+            self.bias_cov *= scale**2
+        elif self._init:  # initialised before any fix: the bias is as uncertain as the receiver's error
+            self.bias_cov = np.eye(2) * var
+        self._bias_var = var
+
     def _update_fix(self, obs: FixObservation) -> None:
-        r = self._antennas() - obs.xy
-        d2 = np.einsum("ni,ij,nj->n", r, np.linalg.inv(obs.cov), r)
         nu = self.params.gps_dof
+        if not self._correlated():
+            r = obs.xy - self._antennas()
+            d2 = np.einsum("ni,ij,nj->n", r, np.linalg.inv(obs.cov), r)
+            self.logw += -0.5 * (nu + 2.0) * np.log1p(d2 / nu)
+            self._after_weighting()
+            return
+        S = self.bias_cov + np.eye(2) * self.params.gps_white_sigma_m**2
+        S_inv = np.linalg.inv(S)
+        r = obs.xy - self._antennas() - self.bias
+        d2 = np.einsum("ni,ij,nj->n", r, S_inv, r)
         self.logw += -0.5 * (nu + 2.0) * np.log1p(d2 / nu)
+        gain = self.bias_cov @ S_inv
+        self.bias += ((nu + 2.0) / (nu + d2))[:, None] * (r @ gain.T)
+        self.bias_cov = (np.eye(2) - gain) @ self.bias_cov
         self._after_weighting()
 
     def _after_weighting(self) -> None:
@@ -176,20 +216,25 @@ class Pf(Estimator):
         ess = 1.0 / float(np.sum(w**2))
         n = self.params.n_particles
         if ess < self.params.resample_ess * n:
-            _, spread = self._mean_cov(self.poses, 2)
+            mean, spread = self._mean_cov(self.poses, 2)
             u = (self.rng.random() + np.arange(n)) / n
             idx = np.minimum(np.searchsorted(np.cumsum(w), u), n - 1)
-            # regularised resampling: a kernel shaped like the posterior (optimal Gaussian bandwidth),
-            # plus a floor, so that near-deterministic motion does not collapse the cloud
-            bandwidth = (4.0 / (n * 5.0)) ** (1.0 / 7.0)
+            # regularised resampling (Liu-West): shrink towards the mean and add a kernel shaped like
+            # the posterior, which keeps its mean and spread, plus a small floor, so that
+            # near-deterministic motion does not collapse the cloud
+            h2 = (4.0 / (n * 5.0)) ** (2.0 / 7.0)
+            shrink = math.sqrt(1.0 - h2)
             floor = np.diag([self.params.roughen_m**2, self.params.roughen_m**2, math.radians(self.params.roughen_deg) ** 2])
-            chol = np.linalg.cholesky(bandwidth**2 * spread + floor)
-            jitter = self.rng.standard_normal((n, 3)) @ chol.T
+            chol = np.linalg.cholesky(h2 * spread + floor)
+            offset = self.poses[idx] - mean
+            offset[:, 2] = wrap(offset[:, 2])
+            jitter = (shrink - 1.0) * offset + self.rng.standard_normal((n, 3)) @ chol.T
             self.poses = self.poses[idx] + jitter
             self.poses[:, 2] = wrap(self.poses[:, 2])
             self.clones = self.clones[idx] + jitter
             self.clones[:, 2] = wrap(self.clones[:, 2])
             self.vel = self.vel[idx]
+            self.bias = self.bias[idx]
             self.logw = np.full(n, -math.log(n))
 
     def _mean_cov(self, values: np.ndarray, angular: int | None) -> tuple[np.ndarray, np.ndarray]:
@@ -208,8 +253,11 @@ class Pf(Estimator):
     def _cov3(self) -> np.ndarray:
         return self._mean_cov(self.poses, 2)[1]
 
-    def _predicted_antenna(self) -> tuple[np.ndarray, np.ndarray]:
-        return self._mean_cov(self._antennas(), None)
+    def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not self._correlated():
+            return (*self._mean_cov(self._antennas(), None), obs.cov)
+        mean, cov = self._mean_cov(self._antennas() + self.bias, None)
+        return mean, cov + self.bias_cov, np.eye(2) * self.params.gps_white_sigma_m**2
 
     def _heading(self) -> tuple[float, float]:
         mean, cov = self._mean_cov(self.poses, 2)

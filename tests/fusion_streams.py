@@ -43,6 +43,7 @@ class StreamSpec:
     hdop: float = 1.0
     uere: float = 3.0
     gps_noise: bool = True
+    gps_tau: float = 10.0  # time constant of the GPS error (first-order Gauss-Markov); 0 = white
     mount: np.ndarray = field(default_factory=lambda: DEFAULT_MOUNT.copy())
     lever: tuple[float, float] = (0.0, 0.0)
     faults: list[Fault] = field(default_factory=list)
@@ -103,17 +104,20 @@ def generate(spec: StreamSpec) -> tuple[list[tuple], np.ndarray, np.ndarray]:
         events.append(("match", float(ts), result))
         prev = pose
     if not spec.no_gps:
+        sigma = spec.uere * spec.hdop / math.sqrt(2.0)
+        rho = math.exp(-1.0 / (spec.fix_hz * spec.gps_tau)) if spec.gps_tau > 0 else 0.0
+        noise = rng_gps.normal(0.0, sigma, 2)
         for tf in np.arange(0.05, spec.duration, 1.0 / spec.fix_hz):
-            events.append(("fix", float(tf), make_fix(spec, t_grid, poses, float(tf), rng_gps)))
+            events.append(("fix", float(tf), make_fix(spec, t_grid, poses, float(tf), noise if spec.gps_noise else np.zeros(2))))
+            noise = rho * noise + math.sqrt(1.0 - rho**2) * rng_gps.normal(0.0, sigma, 2)
     events.sort(key=lambda e: (e[1], e[0] == "fix"))
     return events, t_grid, poses
 
 
-def make_fix(spec: StreamSpec, t_grid: np.ndarray, poses: np.ndarray, t: float, rng: np.random.Generator) -> GnssFix:
+def make_fix(spec: StreamSpec, t_grid: np.ndarray, poses: np.ndarray, t: float, noise: np.ndarray) -> GnssFix:
     pose = pose_at(t_grid, poses, t)
     antenna = pose[:2] + rot2(pose[2]) @ np.asarray(spec.lever)
-    sigma = spec.uere * spec.hdop / math.sqrt(2.0)
-    err = rng.normal(0.0, sigma, 2) if spec.gps_noise else np.zeros(2)
+    err = noise.copy()
     quality = 1
     for f in spec.faults:
         if f.start <= t < f.end:

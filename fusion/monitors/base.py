@@ -15,16 +15,18 @@ from fusion.verdict import Verdict
 class FixContext:
     """What the host estimator knows when a fix arrives.
 
-    predicted: antenna (x, y) predicted by the filter and its 2x2 covariance (None before it is
-    initialised); yaw/yaw_var: the filter's heading and its variance (None before initialisation);
-    lever: antenna (x, y) on base_link; odometry: the scan-matching chain.
+    predicted: the fix (x, y) the filter expects, the 2x2 covariance of that prediction and the 2x2
+    noise it assumes for this fix (None before it is initialised); yaw/yaw_var: the filter's heading and its variance (None before initialisation);
+    lever: antenna (x, y) on base_link; odometry: the scan-matching chain; correlation_s: the
+    receiver's error time constant (see EstimatorParams.gps_correlation_s).
     """
 
-    predicted: tuple[np.ndarray, np.ndarray] | None
+    predicted: tuple[np.ndarray, np.ndarray, np.ndarray] | None
     yaw: float | None
     yaw_var: float | None
     lever: np.ndarray
     odometry: OdometryTrack
+    correlation_s: float = 0.0
 
 
 class Monitor:

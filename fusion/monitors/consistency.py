@@ -35,7 +35,12 @@ from fusion.verdict import Verdict
 class ConsistencyParams(BaseModel):
     """Defaults: window 2 s, gate 0.999 (13.8), reference dropped after 60 s without a trusted fix,
     guard after a 2 s gap for at least 5 s and 5 consecutive window tests under the 0.99 gate (9.2);
-    max_speed_mps bounds the unknown motion where the odometry does not cover a step [5 m/s]."""
+    max_speed_mps bounds the unknown motion where the odometry does not cover a step [5 m/s];
+    min_diff_sigma_m floors the per-axis noise of a GPS displacement [0.3 m].
+
+    Two fixes dt apart have errors correlated by rho = exp(-dt / correlation_s) (the host's
+    gps_correlation_s), so their displacement's noise is (C_a + C_b)(1 - rho), floored; the
+    reference weighs each trusted fix as a share dt / correlation_s of an independent one."""
 
     model_config = ConfigDict(extra="forbid")
     window_s: float = Field(2.0, gt=0)
@@ -46,6 +51,7 @@ class ConsistencyParams(BaseModel):
     guard_n: int = Field(5, ge=0)
     guard_gate_prob: float = Field(0.99, gt=0.5, lt=1.0)
     max_speed_mps: float = Field(5.0, gt=0)
+    min_diff_sigma_m: float = Field(0.3, gt=0)
 
 
 class ConsistencyMonitor(Monitor):
@@ -63,7 +69,7 @@ class ConsistencyMonitor(Monitor):
         self._last_measured: float | None = None
         self._guard_start: float | None = None
         self._guard_passes = 0
-        self._pending: tuple[bool, tuple | None, float] = (False, None, math.nan)
+        self._pending: tuple[bool, tuple | None, float, float] = (False, None, math.nan, 1.0)
 
     def _moved(self, t_a: float, t_b: float, ctx: FixContext) -> tuple[np.ndarray, np.ndarray] | None:
         """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance."""
@@ -81,8 +87,10 @@ class ConsistencyMonitor(Monitor):
         moved = self._moved(ref.stamp, obs.stamp, ctx)
         if moved is None:
             return math.nan
+        rho = math.exp(-(obs.stamp - ref.stamp) / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
+        gps = (ref.cov + obs.cov) * (1.0 - rho) + np.eye(2) * self.params.min_diff_sigma_m**2
         r = (obs.xy - ref.xy) - moved[0]
-        return float(r @ np.linalg.solve(moved[1] + ref.cov + obs.cov, r))
+        return float(r @ np.linalg.solve(moved[1] + gps, r))
 
     def _reference_at(self, obs: FixObservation, ctx: FixContext) -> tuple[float, np.ndarray, np.ndarray] | None:
         """The reference antenna track carried by the odometry to this fix (None without one)."""
@@ -118,7 +126,10 @@ class ConsistencyMonitor(Monitor):
         if ref is not None:
             r = obs.xy - ref[1]
             ref_d2 = float(r @ np.linalg.solve(ref[2] + obs.cov, r))
-        self._pending = (gap, ref, max([d for d in (guard_d2, ref_d2) if not math.isnan(d)], default=math.nan))
+        weight = 1.0
+        if ctx.correlation_s > 0 and self._last_measured is not None:
+            weight = min(1.0, max(obs.stamp - self._last_measured, 1e-3) / ctx.correlation_s)
+        self._pending = (gap, ref, max([d for d in (guard_d2, ref_d2) if not math.isnan(d)], default=math.nan), weight)
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
@@ -135,7 +146,7 @@ class ConsistencyMonitor(Monitor):
         return Verdict(True, statistic, "displacement consistent")
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
-        gap, ref, guard_d2 = self._pending
+        gap, ref, guard_d2, weight = self._pending
         if gap:
             self._guard_start, self._guard_passes = obs.stamp, 0
             self._history.clear()
@@ -154,6 +165,6 @@ class ConsistencyMonitor(Monitor):
                 self._ref = (obs.stamp, obs.xy.copy(), obs.cov.copy())
             else:
                 stamp, xy, cov = self._ref
-                gain = cov @ np.linalg.inv(cov + obs.cov)
+                gain = cov @ np.linalg.inv(cov + obs.cov / weight)
                 self._ref = (stamp, xy + gain @ (obs.xy - xy), (np.eye(2) - gain) @ cov)
             self._ref_trusted_at = obs.stamp

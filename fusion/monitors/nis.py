@@ -30,9 +30,9 @@ class NisMonitor(Monitor):
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         if ctx.predicted is None:
             return Verdict(False, float("nan"), "filter not initialised")
-        mean, cov = ctx.predicted
+        mean, cov, noise = ctx.predicted
         y = obs.xy - mean
-        nis = float(y @ np.linalg.solve(cov + obs.cov, y))
+        nis = float(y @ np.linalg.solve(cov + noise, y))
         if nis > self.gate:
             return Verdict(False, nis, f"NIS {nis:.1f} > gate {self.gate:.1f}")
         return Verdict(True, nis, "NIS ok")

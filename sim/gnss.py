@@ -176,32 +176,8 @@ class GnssReceiver:
         geo = self._geometry(world)
         self._last_t = t
 
-        # Satellite geometry in the world's ENU frame, mask.
-        sat_enu = geo.frame.enu_of_ecef(self.constellation.ecef(since_almanac))
-        diff = sat_enu - antenna
-        geometric = np.sqrt(np.einsum("ij,ij->i", diff, diff))
-        up = diff[:, 2] / geometric
-        view = np.nonzero(up >= np.sin(self._mask))[0]
-        sat_enu, geometric, dirs = sat_enu[view], geometric[view], diff[view] / geometric[view, None]
-        el = np.arcsin(up[view])
-
-        # Signal paths: direct and reflected, one ray batch.
-        reflections = geo.facades.reflections(antenna, dirs)
-        paths = trace(world.raycasting_scene, antenna, dirs, reflections)
-        if paths.inside_solid:
-            raise ValueError(
-                f"gnss: antenna at ENU ({antenna[0]:.2f}, {antenna[1]:.2f}, {antenna[2]:.2f}) at t={t} s "
-                f"is inside a solid part of world {getattr(world, 'name', '?')!r}"
-            )
-        # Shortest clear reflection per satellite: assign longest first so the shortest wins.
-        extra = np.full(len(view), np.inf)
-        if len(reflections):
-            ok = np.nonzero(paths.reflection_clear)[0]
-            ok = ok[np.argsort(-reflections.extra_m[ok])]
-            extra[reflections.sat[ok]] = reflections.extra_m[ok]
-        reflected = np.isfinite(extra)
-        los = paths.los
-        nlos = ~los & reflected
+        sat_enu, geometric, dirs, el, view = self._sky(geo, antenna, since_almanac)
+        los, nlos, extra = self._paths(world, geo, antenna, dirs, t)
 
         # Signal strength and tracking.
         mp = self.config.multipath
@@ -215,7 +191,7 @@ class GnssReceiver:
         # Pseudoranges.
         bias = np.zeros(len(view))
         bias[nlos] = extra[nlos]
-        los_mp = los & reflected
+        los_mp = los & np.isfinite(extra)
         if los_mp.any():
             bias[los_mp] = code_multipath_error(
                 extra[los_mp], mp.reflection_amplitude, mp.correlator_spacing_chips,
@@ -262,6 +238,32 @@ class GnssReceiver:
             speed_mps=speed,
             course_deg=course,
         )
+
+    def _sky(self, geo: _WorldGeometry, antenna: np.ndarray, since_almanac: float):
+        """Satellites above the mask: ENU positions, ranges, unit directions, elevations, indices."""
+        sat_enu = geo.frame.enu_of_ecef(self.constellation.ecef(since_almanac))
+        diff = sat_enu - antenna
+        geometric = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        up = diff[:, 2] / geometric
+        view = np.nonzero(up >= np.sin(self._mask))[0]
+        return sat_enu[view], geometric[view], diff[view] / geometric[view, None], np.arcsin(up[view]), view
+
+    def _paths(self, world, geo: _WorldGeometry, antenna: np.ndarray, dirs: np.ndarray, t: float):
+        """Per satellite: direct path clear (los), received only by reflection (nlos), and the
+        extra path (m) of its shortest clear facade reflection (inf if none)."""
+        reflections = geo.facades.reflections(antenna, dirs)
+        paths = trace(world.raycasting_scene, antenna, dirs, reflections)
+        if paths.inside_solid:
+            raise ValueError(
+                f"gnss: antenna at ENU ({antenna[0]:.2f}, {antenna[1]:.2f}, {antenna[2]:.2f}) at t={t} s "
+                f"is inside a solid part of world {getattr(world, 'name', '?')!r}"
+            )
+        extra = np.full(len(dirs), np.inf)
+        if len(reflections):
+            ok = np.nonzero(paths.reflection_clear)[0]
+            ok = ok[np.argsort(-reflections.extra_m[ok])]  # assign longest first: the shortest wins
+            extra[reflections.sat[ok]] = reflections.extra_m[ok]
+        return paths.los, ~paths.los & np.isfinite(extra), extra
 
     def _forced_bias(self, t: float, view: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Range biases (m) of the satellites in view from the forced-bias windows active at t."""

@@ -240,3 +240,23 @@ def test_bad_inputs_raise_one_clear_error():
 def test_antenna_next_to_a_building_is_not_inside_it():
     fix = GnssReceiver().fix(gw.solid_building(), gw.Static(x=60.0, y=15.0), 0.0)
     assert fix.quality == 1
+
+
+def test_canal_lock_walls_give_large_nlos_errors_at_low_hdop_open_river_does_not():
+    import worlds
+    from sim import Trajectory
+
+    def run(name, **trajectory):
+        world = worlds.load(name)
+        motion = Trajectory(world, **trajectory)
+        rx = GnssReceiver(seed=0, rate_hz=1.0)
+        fixes = [rx.fix(world, motion, t) for t in rx.epochs(motion.duration)]
+        herr = np.array([np.linalg.norm(f.truth.error[:2]) for f in fixes])
+        hdop = np.array([f.hdop for f in fixes])
+        nlos = np.array([any(tr.nlos for tr, s in zip(f.truth.sats, f.sats) if s.used) for f in fixes])
+        return herr, hdop, nlos
+
+    herr, hdop, nlos = run("canal_lock")
+    assert (nlos & (herr > 10.0) & (hdop < 2.0)).sum() >= 20
+    herr, hdop, nlos = run("open_river", end_m=1000.0)
+    assert not nlos.any() and herr.max() < 8.0 and (hdop < 2.0).all()

@@ -112,9 +112,11 @@ def build_lock(spec: LockSpec, route: Route) -> list[Part]:
         width = line.left if side == "left" else line.right
         for s0, s1 in zip(cuts[:-1], cuts[1:]):
             in_recess = any(abs(s0 - r0) < 1e-9 for r0, _ in recesses)
-            n = max(int((s1 - s0) / 2.0), 1) + 1
-            outer = np.interp(np.linspace(s0, s1, n), line.s, width) + 3.0
-            walls.append(_block(line, side, s0, s1, half + (recess if in_recess else 0.0), outer, -spec.below_m, spec.top_m, n))
+            # full-depth segments reach 5 cm into the recesses: no zero-width crack at the steps
+            w0, w1 = (s0, s1) if in_recess else (max(s0 - 0.05, a), min(s1 + 0.05, b))
+            n = max(int((w1 - w0) / 2.0), 1) + 1
+            outer = np.interp(np.linspace(w0, w1, n), line.s, width) + 3.0
+            walls.append(_block(line, side, w0, w1, half + (recess if in_recess else 0.0), outer, -spec.below_m, spec.top_m, n))
             if in_recess:
                 gates.append(_block(line, side, s0 + 0.2, s1 - 0.5, half + 0.15, half + 0.15 + spec.gate_thickness_m,
                                     -spec.below_m + 0.5, spec.top_m - 0.3, n))

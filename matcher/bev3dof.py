@@ -57,9 +57,10 @@ class _Image:
     def __init__(self, xy: np.ndarray, z: np.ndarray, time: np.ndarray, twist: np.ndarray | None, p: Bev3dofParams) -> None:
         self.xy, self.z, self.time, self.twist, self.p = xy, z, time, twist, p
         n = int(round(2 * p.extent_m / p.pixel_m))
-        ij = np.floor((deskew_planar(xy, time, twist) + p.extent_m) * (1.0 / p.pixel_m)).astype(np.int64)
-        inside = ((ij >= 0) & (ij < n)).all(axis=1)
-        flat = ij[inside, 1] * n + ij[inside, 0]
+        uv = (deskew_planar(xy, time, twist) + p.extent_m) * (1.0 / p.pixel_m)
+        inside = (uv[:, 0] >= 0) & (uv[:, 0] < n) & (uv[:, 1] >= 0) & (uv[:, 1] < n)
+        ij = uv[inside].astype(np.int64)  # truncation is floor here: all coordinates are >= 0
+        flat = ij[:, 1] * n + ij[:, 0]
         counts = np.bincount(flat, minlength=n * n)
         if p.image == "count":
             img = np.log1p(counts.astype(np.float32)).reshape(n, n)
@@ -112,7 +113,7 @@ class Bev3dof(Matcher):
         self._px2m = np.array([[params.pixel_m, 0, c], [0, params.pixel_m, c], [0, 0, 1.0]])
         self._m2px = np.linalg.inv(self._px2m)
         self._window = cv2.createHanningWindow((n, n), cv2.CV_32F)
-        centres = ((np.arange(n) + 0.5) * params.pixel_m - params.extent_m)[::2]  # every second pixel
+        centres = (np.arange(n // 2) + 0.5) * 2.0 * params.pixel_m - params.extent_m  # of the half-resolution pixels
         self._centre_x = np.tile(centres, len(centres))
         self._centre_y = np.repeat(centres, len(centres))
         self._ref: _Image | None = None
@@ -195,23 +196,24 @@ class Bev3dof(Matcher):
 
     def _covariance(self, prev: np.ndarray, cur: np.ndarray, W: np.ndarray, T: np.ndarray, mean_range: float) -> tuple[np.ndarray, dict]:
         """Fisher information of the normalised image residual in [x, y, yaw] (right perturbation),
-        summed over every second pixel in each direction (scaled back; neighbours are correlated)."""
+        on both images averaged down to half resolution (the blurred pixels are correlated anyway)."""
         p = self.p
-        warped = self._warped_prev(prev, W)
-        gx = cv2.Sobel(warped, cv2.CV_32F, 1, 0, ksize=3)[::2, ::2].ravel()
-        gy = cv2.Sobel(warped, cv2.CV_32F, 0, 1, ksize=3)[::2, ::2].ravel()
-        a, b = warped[::2, ::2].ravel(), cur[::2, ::2].ravel()
+        half = (self._n // 2, self._n // 2)
+        a = cv2.resize(self._warped_prev(prev, W), half, interpolation=cv2.INTER_AREA)
+        b = cv2.resize(cur, half, interpolation=cv2.INTER_AREA)
         a, b = a - a.mean(), b - b.mean()
         na, nb = max(float(np.linalg.norm(a)), 1e-12), max(float(np.linalg.norm(b)), 1e-12)
+        scale = 1.0 / (8.0 * 2.0 * p.pixel_m * na)  # Sobel sum -> derivative of a / |a| per metre
+        gx = cv2.Sobel(a, cv2.CV_32F, 1, 0, ksize=3).ravel()
+        gy = cv2.Sobel(a, cv2.CV_32F, 0, 1, ksize=3).ravel()
         support = np.flatnonzero((gx != 0) | (gy != 0))  # pixels without gradient add nothing to H
-        g = 1.0 / (8.0 * p.pixel_m * na)
-        gx, gy = gx[support].astype(np.float64) * g, gy[support].astype(np.float64) * g
+        gx, gy = gx[support].astype(np.float64) * scale, gy[support].astype(np.float64) * scale
         X, Y = self._centre_x[support], self._centre_y[support]
         J = np.stack([gx, gy, gy * X - gx * Y], axis=1)
-        H = 4.0 * (J.T @ J)
-        r = (a / na - b / nb).astype(np.float64)
-        correlated_px = max(4.0 * np.pi * p.blur_px**2, 1.0)  # residuals are correlated over the blur kernel
-        sigma2 = 4.0 * float(r @ r) / max(4 * r.size - 3, 1) * correlated_px
+        H = J.T @ J
+        r = (a / na - b / nb).ravel().astype(np.float64)
+        correlated_px = max(np.pi * p.blur_px**2, 1.0)  # residuals are correlated over the blur kernel (in half pixels)
+        sigma2 = float(r @ r) / max(r.size - 3, 1) * correlated_px
         cov3, degeneracy = covariance_from_hessian(H, sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad, (False, False, True))
         floor = p.quantization_sigma_px * p.pixel_m
         cov3 += np.diag([floor**2, floor**2, (floor / max(mean_range, 1.0)) ** 2])  # grid quantisation adds to the image noise

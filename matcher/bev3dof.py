@@ -17,7 +17,7 @@ from pydantic import Field
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.covariance import DegeneracyParams, covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
-from matcher.motion import deskew_planar, planar, pose_to_xyzrpy, se3_log, twist_changed
+from matcher.motion import deskew_planar, gram, planar, pose_to_xyzrpy, se3_log, twist_changed
 from matcher.result import MatchResult
 
 
@@ -95,7 +95,7 @@ class _Image:
 
 def _ncc(a: np.ndarray, b: np.ndarray) -> float:
     a, b = a - a.mean(), b - b.mean()
-    den = float(np.sqrt((a * a).sum() * (b * b).sum()))
+    den = float(np.sqrt((a * a).sum() * (b * b).sum()))  # elementwise sums: no BLAS thread wake-ups
     return float((a * b).sum() / den) if den > 0 else 0.0
 
 
@@ -202,7 +202,7 @@ class Bev3dof(Matcher):
         a = cv2.resize(self._warped_prev(prev, W), half, interpolation=cv2.INTER_AREA)
         b = cv2.resize(cur, half, interpolation=cv2.INTER_AREA)
         a, b = a - a.mean(), b - b.mean()
-        na, nb = max(float(np.linalg.norm(a)), 1e-12), max(float(np.linalg.norm(b)), 1e-12)
+        na, nb = max(float(np.sqrt((a * a).sum())), 1e-12), max(float(np.sqrt((b * b).sum())), 1e-12)  # no BLAS dot
         scale = 1.0 / (8.0 * 2.0 * p.pixel_m * na)  # Sobel sum -> derivative of a / |a| per metre
         gx = cv2.Sobel(a, cv2.CV_32F, 1, 0, ksize=3).ravel()
         gy = cv2.Sobel(a, cv2.CV_32F, 0, 1, ksize=3).ravel()
@@ -210,10 +210,10 @@ class Bev3dof(Matcher):
         gx, gy = gx[support].astype(np.float64) * scale, gy[support].astype(np.float64) * scale
         X, Y = self._centre_x[support], self._centre_y[support]
         J = np.stack([gx, gy, gy * X - gx * Y], axis=1)
-        H = J.T @ J
+        H = gram(J)
         r = (a / na - b / nb).ravel().astype(np.float64)
         correlated_px = max(np.pi * p.blur_px**2, 1.0)  # residuals are correlated over the blur kernel (in half pixels)
-        sigma2 = float(r @ r) / max(r.size - 3, 1) * correlated_px
+        sigma2 = float((r * r).sum()) / max(r.size - 3, 1) * correlated_px
         cov3, degeneracy = covariance_from_hessian(H, sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad, (False, False, True))
         floor = p.quantization_sigma_px * p.pixel_m
         cov3 += np.diag([floor**2, floor**2, (floor / max(mean_range, 1.0)) ** 2])  # grid quantisation adds to the image noise

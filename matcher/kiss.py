@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
-from matcher.motion import se3_exp, se3_log
+from matcher.motion import se3_exp, se3_log, transform
 from matcher.result import MatchResult
 
 
@@ -66,7 +66,7 @@ class KissIcp(Matcher):
         delta = kiss.last_delta
         _, source = kiss.register_frame(cloud.xyz, cloud.time)
         pose_end = kiss.last_pose
-        in_map = source @ pose_end[:3, :3].T + pose_end[:3, 3]
+        in_map = transform(source, pose_end[:3, :3], pose_end[:3, 3])
         if not self.p.deskew or len(cloud.time) < 2 or np.ptp(cloud.time) <= 0:
             return pose_end, in_map
         # kiss-icp: a point at normalised time s = (t - tmin) / (tmax - tmin) is at pose_end exp((s - 1) log delta)

@@ -13,6 +13,19 @@ def skew(w: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
+def transform(points: np.ndarray, R: np.ndarray, t: np.ndarray | None = None) -> np.ndarray:
+    """points @ R.T + t for (N, 3) points, without BLAS: its thread pool, woken per call, stalls
+    for milliseconds on a busy machine, far longer than these three multiply-adds take."""
+    out = points[:, 0:1] * R[:, 0] + points[:, 1:2] * R[:, 1] + points[:, 2:3] * R[:, 2]
+    return out if t is None else out + t
+
+
+def gram(J: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """J.T @ diag(w) @ J for a tall (N, k) Jacobian, without BLAS (see `transform`)."""
+    Jw = J if w is None else J * w[:, None]
+    return np.einsum("ni,nj->ij", Jw, J)
+
+
 def se3_exp(xi: np.ndarray) -> np.ndarray:
     """4x4 pose of the twist xi = [v (m), w (rad)] integrated over unit time."""
     v, w = np.asarray(xi[:3], float), np.asarray(xi[3:], float)
@@ -78,8 +91,8 @@ def deskew(xyz: np.ndarray, t: np.ndarray, twist_per_s: np.ndarray | None) -> np
     K = skew(w / rate)
     theta = rate * t
     s, c = np.sin(theta), 1.0 - np.cos(theta)
-    Kp = xyz @ K.T
-    KKp = Kp @ K.T
+    Kp = transform(xyz, K)
+    KKp = transform(Kp, K)
     rotated = xyz + s * Kp + c * KKp
     Kv, KKv = K @ v, K @ K @ v
     translation = t * v + (c / rate) * Kv + (t - s / rate) * KKv

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from matcher.motion import gram, transform
+
 
 @dataclass(frozen=True)
 class PlaneFit:
@@ -30,7 +32,7 @@ def point_to_plane_fit(
 ) -> PlaneFit:
     """Pair each source point moved by T with its nearest target point within max_distance_m and
     weigh the plane residual with Tukey's biweight (k = tukey_k_m); residuals beyond k are outliers."""
-    q = source @ T[:3, :3].T + T[:3, 3]
+    q = transform(source, T[:3, :3], T[:3, 3])
     dist, idx = target_tree.query(q, distance_upper_bound=max_distance_m)
     paired = np.isfinite(dist)
     q, idx = q[paired], idx[paired]
@@ -38,7 +40,7 @@ def point_to_plane_fit(
     e = np.einsum("ij,ij->i", n, q - target[idx])
     w = np.clip(1.0 - (e / tukey_k_m) ** 2, 0.0, None) ** 2
     J = np.hstack([n, np.cross(q, n)])
-    H = (J * w[:, None]).T @ J
+    H = gram(J, w)
     weight = float(w.sum())
     sigma2 = float((w * e**2).sum() / max(weight - 6.0, 1.0))
     m = int(paired.sum())

@@ -371,6 +371,16 @@ def test_resolved_params_are_complete_and_json():
     params = json.loads(json.dumps(world.params))
     assert params["width_m"] == 30 and params["seed"] == 3 and params["wall_height_m"] == 3.0
     assert {"name", "type", "station_m", "deck_height_m", "deck_width_m"} <= set(params["structures"][0])
+    assert {(e["side"], e["type"]) for e in params["edges"]} == {("left", "wall"), ("right", "wall")}
+    assert params["edges"][0]["start_m"] == 0 and params["edges"][0]["end_m"] == pytest.approx(world.route.length)
+    assert len(params["building_rows"]) == 2
+
+
+def test_charles_edges_record_sea_walls_and_quays(built):
+    edges = built["charles_river"].params["edges"]
+    right = [e for e in edges if e["side"] == "right"]
+    assert [e["type"] for e in right] == ["wall", "quay"]
+    assert right[0]["material"] == "granite" and right[0]["end_m"] > 2500
 
 
 def _self_crossings(pts):

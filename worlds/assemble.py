@@ -9,7 +9,7 @@ import numpy as np
 from worlds.bridges import BridgeSpec, build_bridge
 from worlds.bridges import summary as bridge_summary
 from worlds.buildings import BuildingRow, build_buildings
-from worlds.channel import Centerline, ChannelParams, build_channel
+from worlds.channel import Centerline, ChannelParams, build_channel, edge_summary
 from worlds.lock import LockSpec, build_lock
 from worlds.lock import summary as lock_summary
 from worlds.route import Route
@@ -29,7 +29,8 @@ def assemble(
     origin: tuple[float, float, float],
     params: dict,
 ) -> World:
-    """Build every part; params gets 'structures' (bridges and locks sorted by station) added.
+    """Build every part; params gets 'structures' (bridges and locks sorted by station), 'edges'
+    (wall/quay/bank stretches per side) and 'building_rows' added, all with route stations.
 
     Inside a lock chamber the route's bank distances become the chamber walls' distances.
     """
@@ -45,7 +46,13 @@ def assemble(
     keep_clear += [(lk.station_m - lk.length_m / 2 - 10, lk.station_m + lk.length_m / 2 + 10) for lk in locks]
     parts += build_buildings(rows, Centerline.of(route, channel.end_extension_m), seed, keep_clear)
     structures = [bridge_summary(b, route) for b in bridges] + [lock_summary(lk) for lk in locks]
-    params = {**params, "structures": sorted(structures, key=lambda d: d["station_m"]), "route_length_m": route.length}
+    params = {
+        **params,
+        "structures": sorted(structures, key=lambda d: d["station_m"]),
+        "edges": edge_summary(route, channel),
+        "building_rows": [row.model_dump(mode="json") for row in rows],
+        "route_length_m": route.length,
+    }
     return World(name=name, parts=parts, route=_narrow_in_locks(route, locks), origin=origin, params=params)
 
 

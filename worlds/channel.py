@@ -158,6 +158,16 @@ def _intervals(side: str, params: ChannelParams, s0: float, s1: float) -> list[t
     return out
 
 
+def edge_summary(route: Route, params: ChannelParams) -> list[dict]:
+    """Json-able edge stretches along the route: side, station range, type, height, material."""
+    out = []
+    for side in ("left", "right"):
+        for a, b, style in _intervals(side, params, 0.0, route.length):
+            out.append({"side": side, "start_m": float(a), "end_m": float(b), "type": style.type, "top_m": style.top_m,
+                        "material": style.material or DEFAULT_MATERIAL[style.type]})
+    return out
+
+
 def _offset_line(line: Centerline, side: str, s: np.ndarray, offset: float) -> np.ndarray:
     """Edge-relative offset line on `side` at stations s, untangled at tight inner bends."""
     xy, nl, wl, wr = line.sample(s)

@@ -65,7 +65,9 @@ class MultipathConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     search_radius_m: float = Field(
-        100.0, gt=0.0, le=1000.0, description="Only facades within this distance of the antenna reflect, m."
+        200.0, gt=0.0, le=1000.0,
+        description="Only facades within this distance of the antenna reflect, m (bounds the cost; 200 m reaches "
+        "the buildings across a wide river).",
     )
     reflection_amplitude: float = Field(
         0.4, gt=0.0, lt=1.0,

@@ -57,15 +57,22 @@ class FacadeIndex:
         self.cell_m = float(cell_m if cell_m is not None else max(self.radius_m / 4.0, 5.0))
         self.vertices = np.asarray(vertices, dtype=float).reshape(-1, 3, 3)
         self.normals = np.asarray(normals, dtype=float).reshape(-1, 3)
-        self.offset = np.einsum("ij,ij->i", self.normals, self.vertices[:, 0])
         self.origin = self.vertices[:, 0]
-        # In-face test by barycentric coordinates: u = w.a, v = w.b for w = P - v0 (dual basis of the edges).
+        # In-plane basis per face: t horizontal, b = n x t (up the face); the in-face test solves
+        # P - v0 = u e1 + v e2 in (t, b) coordinates with the inverse of [e1 e2] precomputed.
+        t = np.stack([-self.normals[:, 1], self.normals[:, 0], np.zeros(len(self.normals))], axis=1)
+        self.tangent = t / np.linalg.norm(t, axis=1, keepdims=True)
+        self.bitangent = np.cross(self.normals, self.tangent)
         e1 = self.vertices[:, 1] - self.origin
         e2 = self.vertices[:, 2] - self.origin
-        d11, d12, d22 = (np.einsum("ij,ij->i", x, y) for x, y in ((e1, e1), (e1, e2), (e2, e2)))
-        den = d11 * d22 - d12 * d12
-        self.dual_a = (d22[:, None] * e1 - d12[:, None] * e2) / den[:, None]
-        self.dual_b = (d11[:, None] * e2 - d12[:, None] * e1) / den[:, None]
+        e1t, e1b = np.einsum("ij,ij->i", e1, self.tangent), np.einsum("ij,ij->i", e1, self.bitangent)
+        e2t, e2b = np.einsum("ij,ij->i", e2, self.tangent), np.einsum("ij,ij->i", e2, self.bitangent)
+        det = e1t * e2b - e2t * e1b
+        self.to_u = np.stack([e2b, -e2t], axis=1) / det[:, None]
+        self.to_v = np.stack([-e1b, e1t], axis=1) / det[:, None]
+        # Everything a query needs per face in one row, so a query gathers once.
+        self._rows = np.hstack([self.origin, self.normals, self.tangent, self.bitangent, self.to_u, self.to_v,
+                                self.two_sided[:, None]])
         self._cells = self._build_cells()
 
     @classmethod
@@ -118,28 +125,34 @@ class FacadeIndex:
         return self._cells.get(self._cell_of(xy), np.zeros(0, dtype=np.intp))
 
     def reflections(self, antenna: np.ndarray, directions: np.ndarray, min_distance_m: float = 0.05) -> Reflections:
-        """Image-method reflections of unit satellite `directions` (M, 3) into `antenna` (3,)."""
+        """Image-method reflections of unit satellite `directions` (M, 3) into `antenna` (3,).
+
+        Works on (satellite x facade) matrices in each facade's plane coordinates: the reflection
+        point is P = v0 + p_t t + p_b b with (p_t, p_b) = (a_t, a_b) + (d / n.s) (s.t, s.b).
+        """
         faces = self.near(antenna)
         if len(faces) == 0 or len(directions) == 0:
             return _no_reflections()
-        normal = self.normals[faces]
-        signed = normal @ antenna - self.offset[faces]
-        normal = normal * np.sign(signed)[:, None]  # towards the antenna
+        rows = self._rows[faces]
+        rel = antenna - rows[:, 0:3]
+        signed = np.einsum("ij,ij->i", rel, rows[:, 3:6])
         dist = np.abs(signed)
-        near = (dist > min_distance_m) & (dist <= self.radius_m) & ((signed > 0) | self.two_sided[faces])
-        faces, normal, dist = faces[near], normal[near], dist[near]
-        cos_in = directions @ normal.T  # (M, F): n.s
-        sat, col = np.nonzero(cos_in > 1e-6)
-        if len(sat) == 0:
+        keep = (dist > min_distance_m) & (dist <= self.radius_m) & ((signed > 0) | (rows[:, 16] > 0))
+        if not keep.any():
             return _no_reflections()
-        d, n, ns = dist[col], normal[col], cos_in[sat, col]
-        point = antenna - 2.0 * d[:, None] * n + (d / ns)[:, None] * directions[sat]
-        f = faces[col]
-        w = point - self.origin[f]
-        u = np.einsum("ij,ij->i", w, self.dual_a[f])
-        v = np.einsum("ij,ij->i", w, self.dual_b[f])
-        inside = (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1.0 + 1e-9)
-        return Reflections(sat=sat[inside], point=point[inside], normal=n[inside], extra_m=2.0 * (d * ns)[inside])
+        rows, rel, signed, dist = rows[keep], rel[keep], signed[keep], dist[keep]
+        normal = rows[:, 3:6] * np.sign(signed)[:, None]  # towards the antenna
+        t, b = rows[:, 6:9], rows[:, 9:12]
+        ns = directions @ normal.T  # (M, F)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            k = dist / ns
+        p_t = np.einsum("ij,ij->i", rel, t) + k * (directions @ t.T)
+        p_b = np.einsum("ij,ij->i", rel, b) + k * (directions @ b.T)
+        u = p_t * rows[:, 12] + p_b * rows[:, 13]
+        v = p_t * rows[:, 14] + p_b * rows[:, 15]
+        sat, col = np.nonzero((ns > 1e-6) & (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1.0 + 1e-9))
+        point = rows[col, 0:3] + p_t[sat, col, None] * t[col] + p_b[sat, col, None] * b[col]
+        return Reflections(sat=sat, point=point, normal=normal[col], extra_m=2.0 * dist[col] * ns[sat, col])
 
 
 def _no_reflections() -> Reflections:

@@ -181,17 +181,11 @@ class Ekf(Estimator):
         return h, H, np.eye(2) * self.params.gps_white_sigma_m**2
 
     def _observe_fix(self, obs: FixObservation) -> None:
-        """The receiver's error variance follows its HDOP; the bias keeps its correlation with the rest."""
-        var = float(np.trace(obs.cov)) / 2.0 - self.params.gps_white_sigma_m**2
-        var = max(var, self.params.gps_white_sigma_m**2)
-        if self._correlated() and self._init:
-            if self._bias_var > 0:
-                scale = math.sqrt(var / self._bias_var)
-                self.P[BIAS, :] *= scale
-                self.P[:, BIAS] *= scale
-                self.x[BIAS] *= scale
-            else:  # initialised before any fix: the bias is as uncertain as the receiver's error
-                self.P[BIAS, BIAS] = np.eye(2) * var
+        """The receiver's error variance follows its HDOP (the bias's process noise uses it)."""
+        white = self.params.gps_white_sigma_m**2
+        var = max(float(np.trace(obs.cov)) / 2.0 - white, white)
+        if self._correlated() and self._init and self._bias_var == 0.0:
+            self.P[BIAS, BIAS] = np.eye(2) * var  # initialised before any fix: as uncertain as the receiver
         self._bias_var = var
 
     def _update_fix(self, obs: FixObservation) -> None:

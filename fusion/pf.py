@@ -180,15 +180,11 @@ class Pf(Estimator):
         return self.params.gps_correlation_s > 0
 
     def _observe_fix(self, obs: FixObservation) -> None:
-        """The receiver's error variance follows its HDOP; rescale the bias to the new level."""
+        """The receiver's error variance follows its HDOP (the bias's process noise uses it)."""
         white = self.params.gps_white_sigma_m**2
         var = max(float(np.trace(obs.cov)) / 2.0 - white, white)
-        if self._init and self._bias_var > 0:
-            scale = math.sqrt(var / self._bias_var)
-            self.bias *= scale
-            self.bias_cov *= scale**2
-        elif self._init:  # initialised before any fix: the bias is as uncertain as the receiver's error
-            self.bias_cov = np.eye(2) * var
+        if self._correlated() and self._init and self._bias_var == 0.0:
+            self.bias_cov = np.eye(2) * var  # initialised before any fix: as uncertain as the receiver
         self._bias_var = var
 
     def _update_fix(self, obs: FixObservation) -> None:

@@ -52,6 +52,7 @@ class Pcl6dParams(MatcherParams, DegeneracyParams):
     icp: Literal["point_to_plane", "gicp"] = Field("point_to_plane", description="fine alignment (default point_to_plane)")
     icp_max_correspondence_m: float = Field(1.0, gt=0.0, description="ICP max pair distance (default 1 m)")
     tukey_k_m: float = Field(0.15, gt=0.0, description="Tukey robust-kernel width; larger residuals are outliers (default 0.15 m)")
+    gicp_tukey_k: float = Field(1.0, gt=0.0, description="Tukey width for icp='gicp', on its Mahalanobis-weighted residual (default 1)")
     icp_max_iterations: int = Field(30, ge=1, description="ICP iterations (default 30)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
     min_fitness: float = Field(0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within icp_max_correspondence_m (default 0.8)")
@@ -147,7 +148,7 @@ class Pcl6d(Matcher):
         p = self.p
         criteria = reg.ICPConvergenceCriteria(1e-6, 1e-6, p.icp_max_iterations)
         if p.icp == "gicp":
-            est = reg.TransformationEstimationForGeneralizedICP(reg.TukeyLoss(k=p.tukey_k_m))
+            est = reg.TransformationEstimationForGeneralizedICP(reg.TukeyLoss(k=p.gicp_tukey_k))
             res = reg.registration_generalized_icp(src.pcd, tgt.pcd, p.icp_max_correspondence_m, init, est, criteria)
         else:
             est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=p.tukey_k_m))

@@ -24,7 +24,7 @@ class KissIcpParams(MatcherParams):
     deskew: bool = Field(True, description="kiss-icp data.deskew from the per-point time field (default on)")
     max_iterations: int = Field(500, ge=1, description="kiss-icp registration.max_num_iterations (default 500)")
     convergence: float = Field(1e-4, gt=0.0, description="kiss-icp registration.convergence_criterion (default 1e-4)")
-    num_threads: int = Field(2, ge=0, description="kiss-icp registration.max_num_threads (0 = all; default 2)")
+    num_threads: int = Field(1, ge=0, description="kiss-icp registration.max_num_threads (0 = all; default 1, steadiest on a shared machine)")
     min_overlap: float = Field(
         0.8, ge=0.0, le=1.0, description="fail when a smaller share of registered points lies within 3 voxels of the previous scan's (default 0.8)"
     )

@@ -11,8 +11,9 @@ class Material:
 
     reflectivity: diffuse (Lambertian) reflectance at 905 nm, 0..1; scales LiDAR intensity.
     gnss_reflective: True when L1 signals reflect specularly off it (concrete, stone, steel, glass),
-    so the GNSS model considers it for multipath; False for vegetation, soil and water surface here
-    (water reflections are handled as ground multipath, not as a facade).
+    so the GNSS model considers its vertical faces for multipath; False for vegetation, soil and the
+    water surface (an antenna 1.3 m above the water gets at most 2.6 m of extra path from it, under
+    ~1 m of code error, which the noise model covers).
     water: True for the water surface, which returns almost no 905 nm light.
     """
 

@@ -122,10 +122,14 @@ class Bev3dof(Matcher):
     def _start(self, cloud: Cloud) -> None:
         self._ref = _Image.of(cloud, None, self.p)
 
-    def _images(self, cloud: Cloud, twist: np.ndarray | None) -> tuple[_Image, _Image]:
-        """Reference and current images, both de-skewed with the same twist (so a wrong twist
-        distorts both alike instead of feeding back into the next estimate)."""
-        return self._ref.with_twist(twist), _Image.of(cloud, twist, self.p)
+    def _images(self, cloud: Cloud, twist: np.ndarray | None, dt: float) -> tuple[_Image, _Image]:
+        """Reference and current images, both de-skewed with the same twist, so a wrong twist
+        distorts both alike instead of feeding back into the next estimate. The reference keeps
+        its twist (no re-render) until the motion prior has moved away from it noticeably."""
+        ref = self._ref
+        if twist_changed(ref.twist, twist, dt):
+            ref = ref.with_twist(twist)
+        return ref, _Image.of(cloud, ref.twist, self.p)
 
     def _reset(self) -> None:
         self._ref = self._cur = None
@@ -190,8 +194,8 @@ class Bev3dof(Matcher):
         criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, p.ecc_iterations, p.ecc_eps)
         try:
             cc, W = cv2.findTransformECC(cur, prev, W0[:2].astype(np.float32), cv2.MOTION_EUCLIDEAN, criteria, None, p.ecc_gauss_px)
-        except cv2.error:
-            return -1.0, W0
+        except cv2.error:  # OpenCV gives up when the images do not correlate
+            return -np.inf, W0
         return float(cc), np.vstack([W.astype(np.float64), [0, 0, 1.0]])
 
     def _covariance(self, prev: np.ndarray, cur: np.ndarray, W: np.ndarray, T: np.ndarray, mean_range: float) -> tuple[np.ndarray, dict]:
@@ -231,13 +235,13 @@ class Bev3dof(Matcher):
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
-        twist = self.velocity.twist_per_s
-        prev, cur = self._images(cloud, twist)
+        prev, cur = self._images(cloud, self.velocity.twist_per_s, dt)
+        twist = cur.twist
         self._cur = cur
         if cur.points_drawn < 10 or prev.points_drawn < 10:
             return MatchResult.failure("too few points in the image")
         info: dict = {"points_drawn": cur.points_drawn, "global": False}
-        cc = -1.0
+        cc = -np.inf
         if twist is not None and dt <= p.skip_global_max_dt_s:
             x, y, _, _, _, yaw = pose_to_xyzrpy(planar(self.velocity.predict(dt)))
             cc, W = self._ecc(prev.image, cur.image, self._warp_of(x, y, yaw))
@@ -251,11 +255,13 @@ class Bev3dof(Matcher):
             new_twist = se3_log(self._pose3(W)) / dt
             if not twist_changed(new_twist, twist, dt):
                 break
-            twist = new_twist
-            prev, cur = self._images(cloud, twist)
+            prev, cur = self._images(cloud, new_twist, dt)
+            twist = cur.twist
             self._cur = cur
             cc, W = self._ecc(prev.image, cur.image, W)
         info["peak"] = cc
+        if cc == -np.inf:
+            return MatchResult.failure("ECC refinement failed: the images do not correlate", **info)
         if cc < p.min_correlation:
             return MatchResult.failure(f"weak correlation peak {cc:.2f} < min_correlation {p.min_correlation}", **info)
         T = self._pose3(W)

@@ -116,7 +116,7 @@ class Pcl6d(Matcher):
         src_pcd, src_f = src.features()
         tgt_pcd, tgt_f = tgt.features()
         if len(src_f) < 3 or len(tgt_f) < 3:
-            return np.eye(4), {"prealign_putative": 0, "prealign_rejected_share": 1.0, "prealign_fitness": 0.0}
+            return np.eye(4), {"prealign_putative": 0, "prealign_rejected_share": 1.0, "prealign_fitness": 0.0, "prealign_rmse": float("inf")}
         _, to_tgt = cKDTree(tgt_f).query(src_f)
         pairs = np.stack([np.arange(len(src_f)), to_tgt], axis=1)
         if p.mutual_filter:

@@ -39,7 +39,7 @@ class Bev3dofParams(MatcherParams, DegeneracyParams):
     yaw_search_step_deg: float = Field(1.0, gt=0.0, description="yaw_search: step (default 1 deg)")
     yaw_search_range_deg: float = Field(180.0, gt=0.0, le=180.0, description="yaw_search: +- range (default 180 deg)")
     skip_global_max_dt_s: float = Field(
-        0.25, ge=0.0, description="skip the global step when scans are at most this far apart and a motion prior exists (default 0.25 s)"
+        0.25, ge=0.0, description="skip the global step (refine from the motion prior, or identity) when scans are at most this far apart (default 0.25 s)"
     )
     ecc_iterations: int = Field(50, ge=1, description="ECC iterations (default 50)")
     ecc_eps: float = Field(1e-5, gt=0.0, description="ECC convergence threshold (default 1e-5)")
@@ -242,7 +242,7 @@ class Bev3dof(Matcher):
             return MatchResult.failure("too few points in the image")
         info: dict = {"points_drawn": cur.points_drawn, "global": False}
         cc = -np.inf
-        if twist is not None and dt <= p.skip_global_max_dt_s:
+        if dt <= p.skip_global_max_dt_s:  # start from the motion prior (identity without one: a boat moves little)
             x, y, _, _, _, yaw = pose_to_xyzrpy(planar(self.velocity.predict(dt)))
             cc, W = self._ecc(prev.image, cur.image, self._warp_of(x, y, yaw))
         if cc < p.min_correlation:

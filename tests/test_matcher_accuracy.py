@@ -15,6 +15,7 @@ from matcher.motion import pose_to_xyzrpy
 # near structures: the Harvard Bridge piers, the Charlestown Bridge, canal_lock's road bridge and lock
 PLACES = [("charles_river", 1690.0), ("charles_river", 4900.0), ("canal_lock", 385.0), ("canal_lock", 630.0)]
 N_SCANS = 5
+SEA_STATE = 1  # a light chop: the vessel rolls, pitches and heaves a little
 
 
 @dataclass
@@ -30,8 +31,8 @@ class Sequence:
         return np.linalg.inv(self.traj.lidar_pose(a)) @ self.traj.lidar_pose(b)
 
 
-def _sequence(world, name: str, station: float, n: int) -> Sequence:
-    traj = sim.Trajectory(world, start_m=station)
+def _sequence(world, name: str, station: float, n: int, sea_state: int = SEA_STATE) -> Sequence:
+    traj = sim.Trajectory(world, start_m=station, sea_state=sea_state)
     lidar = sim.HDL32E(seed=7)
     return Sequence(name, station, traj, [lidar.scan(world, traj, 0.1 * k) for k in range(n)])
 

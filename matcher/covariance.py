@@ -10,19 +10,37 @@ from pydantic import BaseModel, ConfigDict, Field
 
 @dataclass(frozen=True)
 class Degeneracy:
-    """Eigen-analysis of the information left on translations and on rotations (Schur complements)."""
+    """Eigenvalues (ascending) of the information left on translations and on rotations after
+    marginalising the other (Schur complements), and the degenerate directions found."""
 
-    translation_ratios: np.ndarray
-    rotation_ratios: np.ndarray
+    translation_information: np.ndarray
+    rotation_information: np.ndarray
     directions: list[np.ndarray]
 
+    @property
+    def translation_ratios(self) -> np.ndarray:
+        return _ratios(self.translation_information)
+
+    @property
+    def rotation_ratios(self) -> np.ndarray:
+        return _ratios(self.rotation_information)
+
     def as_info(self) -> dict:
+        """For MatchResult.info; directions are unit vectors in the matcher's parameter order
+        ([tx, ty, tz, rx, ry, rz]; bev3dof: [x, y, yaw]) in the lidar frame."""
         return {
             "degenerate": bool(self.directions),
+            "translation_information": self.translation_information.tolist(),
+            "rotation_information": self.rotation_information.tolist(),
             "translation_info_ratios": self.translation_ratios.tolist(),
             "rotation_info_ratios": self.rotation_ratios.tolist(),
             "degenerate_directions": [d.tolist() for d in self.directions],
         }
+
+
+def _ratios(eigenvalues: np.ndarray) -> np.ndarray:
+    top = float(eigenvalues[-1]) if len(eigenvalues) else 0.0
+    return eigenvalues / top if top > 0 else np.zeros_like(eigenvalues)
 
 
 def _marginal_information(H: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -58,17 +76,16 @@ def covariance_from_hessian(
     lam, V = np.linalg.eigh(Hs)
     var = np.where(lam > 0, sigma2 / np.where(lam > 0, lam, 1.0), 1.0)
     cov_s = (V * np.minimum(var, 1.0)) @ V.T
-    ratios, directions = {}, []
+    information, directions = {}, []
     for kind in (False, True):
         keep = rot == kind
         if not keep.any():
-            ratios[kind] = np.zeros(0)
+            information[kind] = np.zeros(0)
             continue
         info = _marginal_information(H, keep)
         mu, U = np.linalg.eigh(0.5 * (info + info.T))
-        top = max(float(mu[-1]), 0.0)
-        ratios[kind] = mu / top if top > 0 else np.zeros_like(mu)
-        for i in np.flatnonzero(ratios[kind] < degenerate_ratio) if keep.sum() > 1 else []:
+        information[kind] = mu
+        for i in np.flatnonzero(_ratios(mu) < degenerate_ratio) if keep.sum() > 1 else []:
             v = np.zeros(len(rot))
             v[keep] = U[:, i]
             directions.append(v)
@@ -77,7 +94,7 @@ def covariance_from_hessian(
             current = float(vs @ cov_s @ vs)
             cov_s += max(1.0 - current, 0.0) * np.outer(vs, vs)
     cov = D @ cov_s @ D
-    return 0.5 * (cov + cov.T), Degeneracy(ratios[False], ratios[True], directions)
+    return 0.5 * (cov + cov.T), Degeneracy(information[False], information[True], directions)
 
 
 def to_xyzrpy(cov_param: np.ndarray, J: np.ndarray) -> np.ndarray:

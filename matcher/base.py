@@ -34,7 +34,8 @@ class Matcher(ABC):
     method's `_match`, checks plausibility and keeps the constant-velocity motion prior. A scan
     that passes the gate becomes the new reference even when its match fails (tracking restarts
     from it; the motion prior, the vessel's velocity, is kept until it is `prior_max_age_s` old);
-    a gated scan never does."""
+    a gated scan (info['gated']: too few points, a point-count jump, a stamp that does not
+    advance) never does."""
 
     name: str = ""
 
@@ -68,7 +69,7 @@ class Matcher(ABC):
             return MatchResult.failure("first scan", n_points=n)
         dt = cloud.stamp - self._ref_stamp
         if not dt > 0.0:
-            return MatchResult.failure(f"scan stamp {cloud.stamp} not after the reference's {self._ref_stamp}", n_points=n)
+            return MatchResult.failure(f"scan stamp {cloud.stamp} not after the reference's {self._ref_stamp}", n_points=n, gated=True)
         if self._velocity_stamp is not None and cloud.stamp - self._velocity_stamp > p.prior_max_age_s:
             self.velocity.reset()
         result = self._match(cloud, dt)

@@ -189,3 +189,25 @@ def test_point_to_plane_outlier_share_counts_residuals_beyond_the_kernel():
     fit = point_to_plane_fit(source, np.eye(4), target, np.tile([0, 0, 1.0], (len(a), 1)), cKDTree(target), 1.0, 0.1)
     assert fit.outlier_share == pytest.approx(10 / 121)
     assert fit.sigma2 == pytest.approx(0.0)  # Tukey gives the outliers zero weight
+
+
+@settings(max_examples=100)
+@given(st.lists(st.integers(0, 40000), min_size=1, max_size=40), st.floats(1.2, 4.0), st.integers(1, 6), st.integers(1, 4))
+def test_gate_verdicts_follow_the_rule(counts, ratio, window, reset_after):
+    """Accepted: enough points and within `ratio` of the recent accepted median, or a lasting change."""
+    gate = ScanGate(GateParams(gate_min_points=300, gate_max_ratio=ratio, gate_window=window, gate_reset_after=reset_after))
+    accepted: list[int] = []
+    drops = 0
+    for n in counts:
+        verdict = gate.check(n)
+        if n < 300:
+            assert not verdict.ok
+            continue
+        ref = float(np.median(accepted[-window:])) if accepted else None
+        within = ref is None or max(n / ref, ref / n) <= ratio
+        drops = 0 if within else drops + 1
+        assert verdict.ok == (within or drops >= reset_after)
+        if verdict.ok:
+            accepted = accepted if within else []
+            accepted.append(n)
+            drops = 0

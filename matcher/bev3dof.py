@@ -46,7 +46,8 @@ class Bev3dofParams(MatcherParams, DegeneracyParams):
     ecc_gauss_px: int = Field(5, ge=1, description="ECC Gaussian pre-filter size, odd pixels (default 5)")
     deskew_iterations: int = Field(1, ge=1, description="image/register rounds; later rounds de-skew both scans with the new estimate (default 1)")
     min_correlation: float = Field(0.85, ge=-1.0, le=1.0, description="ECC correlation below which the match fails (default 0.85)")
-    quantization_sigma_px: float = Field(0.1, ge=0.0, description="std. dev. added to x, y (and the matching yaw) for pixel quantisation (default 0.1 px)")
+    floor_sigma_m: float = Field(0.03, ge=0.0, description="std. dev. added to x and y for pixel quantisation and de-skew (default 3 cm = 0.1 px)")
+    floor_sigma_yaw_rad: float = Field(0.0005, ge=0.0, description="std. dev. added to yaw, likewise (default 0.5 mrad)")
     unobserved_sigma_m: float = Field(1.0, gt=0.0, description="std. dev. reported for z, which the method does not observe (default 1 m)")
     unobserved_sigma_rad: float = Field(0.1, gt=0.0, description="std. dev. reported for roll and pitch (default 0.1 rad)")
 
@@ -85,12 +86,6 @@ class _Image:
     def with_twist(self, twist: np.ndarray | None) -> "_Image":
         """The same points de-skewed with another twist."""
         return self if not twist_changed(self.twist, twist, 1.0, 1e-9, 1e-9) else _Image(self.xy, self.z, self.time, twist, self.p)
-
-    @property
-    def mean_range(self) -> float:
-        """Mean horizontal range of the drawn points (a subsample; the lever arm of yaw)."""
-        xy = self.xy[:: max(len(self.xy) // 2000, 1)]
-        return float(np.sqrt((xy**2).sum(axis=1)).mean()) if len(xy) else 1.0
 
 
 def _ncc(a: np.ndarray, b: np.ndarray) -> float:
@@ -198,7 +193,7 @@ class Bev3dof(Matcher):
             return -np.inf, W0
         return float(cc), np.vstack([W.astype(np.float64), [0, 0, 1.0]])
 
-    def _covariance(self, prev: np.ndarray, cur: np.ndarray, W: np.ndarray, T: np.ndarray, mean_range: float) -> tuple[np.ndarray, dict]:
+    def _covariance(self, prev: np.ndarray, cur: np.ndarray, W: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, dict]:
         """Fisher information of the normalised image residual in [x, y, yaw] (right perturbation),
         on both images averaged down to half resolution (the blurred pixels are correlated anyway)."""
         p = self.p
@@ -219,8 +214,7 @@ class Bev3dof(Matcher):
         correlated_px = max(np.pi * p.blur_px**2, 1.0)  # residuals are correlated over the blur kernel (in half pixels)
         sigma2 = float((r * r).sum()) / max(r.size - 3, 1) * correlated_px
         cov3, degeneracy = covariance_from_hessian(H, sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad, (False, False, True))
-        floor = p.quantization_sigma_px * p.pixel_m
-        cov3 += np.diag([floor**2, floor**2, (floor / max(mean_range, 1.0)) ** 2])  # grid quantisation adds to the image noise
+        cov3 += np.diag([p.floor_sigma_m**2, p.floor_sigma_m**2, p.floor_sigma_yaw_rad**2])  # quantisation adds to the image noise
         cov_param = np.diag([0.0, 0.0, p.unobserved_sigma_m**2, p.unobserved_sigma_rad**2, p.unobserved_sigma_rad**2, 0.0])
         idx = [0, 1, 5]
         cov_param[np.ix_(idx, idx)] = cov3
@@ -265,6 +259,6 @@ class Bev3dof(Matcher):
         if cc < p.min_correlation:
             return MatchResult.failure(f"weak correlation peak {cc:.2f} < min_correlation {p.min_correlation}", **info)
         T = self._pose3(W)
-        cov, dinfo = self._covariance(prev.image, cur.image, W, T, cur.mean_range)
+        cov, dinfo = self._covariance(prev.image, cur.image, W, T)
         info.update(dinfo)
         return MatchResult(T=T, ok=True, cov=cov, n_points=0, seconds=0.0, info=info)

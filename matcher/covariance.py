@@ -129,3 +129,19 @@ class DegeneracyParams(BaseModel):
     )
     degenerate_sigma_m: float = Field(1.0, gt=0.0, description="std. dev. of a degenerate (unknown) translation direction (default 1 m)")
     degenerate_sigma_rad: float = Field(0.1, gt=0.0, description="std. dev. of a degenerate (unknown) rotation direction (default 0.1 rad)")
+
+
+class FloorParams(BaseModel):
+    """Model-error variances added to a 6-DoF sigma^2 H^-1 (which leaves out de-skew error, normal
+    errors and correlated noise; measured on charles_river and canal_lock in a light chop)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    floor_sigma_m: float = Field(0.01, ge=0.0, description="std. dev. added to x, y and z (default 1 cm)")
+    floor_sigma_tilt_rad: float = Field(0.003, ge=0.0, description="std. dev. added to roll and pitch: waves defeat constant-velocity de-skew (default 3 mrad)")
+    floor_sigma_yaw_rad: float = Field(0.0005, ge=0.0, description="std. dev. added to yaw (default 0.5 mrad)")
+
+    def add_to(self, cov: np.ndarray) -> np.ndarray:
+        """A 6x6 [x, y, z, roll, pitch, yaw] covariance plus the floor variances."""
+        m, t, y = self.floor_sigma_m**2, self.floor_sigma_tilt_rad**2, self.floor_sigma_yaw_rad**2
+        return cov + np.diag([m, m, m, t, t, y])

@@ -10,12 +10,12 @@ from pydantic import Field
 
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
-from matcher.covariance import DegeneracyParams, covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
+from matcher.covariance import DegeneracyParams, FloorParams, covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
 from matcher.motion import deskew, se3_log, twist_changed
 from matcher.result import MatchResult
 
 
-class GicpParams(MatcherParams, DegeneracyParams):
+class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
     """Settings of the `gicp` matcher."""
 
     registration_type: Literal["GICP", "PLANE_ICP", "ICP"] = Field("GICP", description="small_gicp factor (default GICP)")
@@ -108,6 +108,6 @@ class Gicp(Matcher):
         dof = max(res.num_inliers - 6, 1)
         sigma2 = 2.0 * res.error / dof
         cov_param, degeneracy = covariance_from_hessian(H, sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
-        cov = to_xyzrpy(cov_param, right_perturbation_jacobian(T))
+        cov = p.add_to(to_xyzrpy(cov_param, right_perturbation_jacobian(T)))
         info.update(degeneracy.as_info(), sigma2=float(sigma2))
         return MatchResult(T=T, ok=True, cov=cov, n_points=0, seconds=0.0, info=info)

@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
-from matcher.covariance import DegeneracyParams, covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
+from matcher.covariance import DegeneracyParams, FloorParams, covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
 from matcher.motion import deskew, planar, se3_log, twist_changed
 from matcher.pointplane import point_to_plane_fit
 from matcher.result import MatchResult
@@ -23,7 +23,7 @@ from matcher.result import MatchResult
 reg = o3d.pipelines.registration
 
 
-class Pcl6dParams(MatcherParams, DegeneracyParams):
+class Pcl6dParams(MatcherParams, DegeneracyParams, FloorParams):
     """Settings of the `pcl6d` matcher."""
 
     voxel_m: float = Field(0.4, gt=0.0, description="voxel filter leaf size for ICP (default 0.4 m)")
@@ -203,6 +203,6 @@ class Pcl6d(Matcher):
         if fit.outlier_share > p.max_outlier_share:
             return MatchResult.failure(f"outlier share {fit.outlier_share:.2f} > max_outlier_share {p.max_outlier_share}", **info)
         cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
-        cov = to_xyzrpy(cov_param, left_perturbation_jacobian(T))
+        cov = p.add_to(to_xyzrpy(cov_param, left_perturbation_jacobian(T)))
         info.update(degeneracy.as_info())
         return MatchResult(T=T, ok=True, cov=cov, n_points=0, seconds=0.0, info=info)

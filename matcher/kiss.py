@@ -55,9 +55,9 @@ class KissIcp(Matcher):
 
     def _reset(self) -> None:
         self._kiss: KissICP | None = None
+        self._period: float | None = None
         self._ref_pose: np.ndarray | None = None  # kiss map <- reference scan's lidar frame at its stamp
         self._ref_tree: cKDTree | None = None
-        self._period: float | None = None
         self._pending: tuple[np.ndarray, cKDTree, Cloud] | None = None
 
     def _run(self, cloud: Cloud) -> tuple[np.ndarray, np.ndarray]:
@@ -75,6 +75,8 @@ class KissIcp(Matcher):
 
     def _start(self, cloud: Cloud) -> None:
         self._kiss = KissICP(self._config())
+        if self.velocity.twist_per_s is not None and self._period is not None:  # a restart keeps the vessel's motion
+            self._kiss.last_delta = se3_exp(self.velocity.twist_per_s * self._period)
         pose, source = self._run(cloud)
         self._ref_pose, self._ref_tree = pose, cKDTree(source)
 

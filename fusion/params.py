@@ -19,9 +19,10 @@ class EstimatorParams(BaseModel):
     uere_m: range error scale; a fix's per-axis sigma is uere_m * HDOP / sqrt(2) [3.0, i.e. about
         2.5 m CEP50 at HDOP 1, a consumer receiver].
     gps_correlation_s: time constant of the receiver's position error: its own filter and slowly
-        changing multipath make consecutive fixes' errors alike, so a filter weighs a fix as one of
-        every gps_correlation_s / dt, and displacement tests expect a difference variance that
-        grows as 1 - exp(-dt / gps_correlation_s) [10 s; 0 treats fixes as independent].
+        changing multipath make consecutive fixes' errors alike, so the filters carry it as a
+        first-order Gauss-Markov bias, and displacement tests expect a difference variance that
+        grows as 1 - exp(-dt / gps_correlation_s) [30 s, as the simulated consumer receiver's error
+        decorrelates (0.9 at 10 s, 0.7 at 30 s in open water); 0 treats fixes as independent].
     accept_dead_reckoning: use the receiver's own dead-reckoned output (GGA 6) as a fix [False].
     initial_pose: (x, y, yaw_deg) of base_link at the first input if known, with initial_sigma
         (metres, degrees) [None, (1.0, 5.0)]; otherwise the pose is found at start-up by aligning
@@ -39,7 +40,7 @@ class EstimatorParams(BaseModel):
     mount: tuple[tuple[float, float, float, float], ...] = DEFAULT_MOUNT
     antenna: tuple[float, float, float] = (0.0, 0.0, 1.3)
     uere_m: float = Field(3.0, gt=0)
-    gps_correlation_s: float = Field(10.0, ge=0)
+    gps_correlation_s: float = Field(30.0, ge=0)
     accept_dead_reckoning: bool = False
     initial_pose: tuple[float, float, float] | None = None
     initial_sigma: tuple[float, float] = (1.0, 5.0)

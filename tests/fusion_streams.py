@@ -43,7 +43,7 @@ class StreamSpec:
     hdop: float = 1.0
     uere: float = 3.0
     gps_noise: bool = True
-    gps_tau: float = 10.0  # time constant of the GPS error (first-order Gauss-Markov); 0 = white
+    gps_tau: float = 30.0  # time constant of the GPS error (first-order Gauss-Markov); 0 = white
     mount: np.ndarray = field(default_factory=lambda: DEFAULT_MOUNT.copy())
     lever: tuple[float, float] = (0.0, 0.0)
     faults: list[Fault] = field(default_factory=list)

@@ -34,7 +34,8 @@ from fusion.verdict import Verdict
 
 class ConsistencyParams(BaseModel):
     """Defaults: window 2 s, gate 0.999 (13.8), reference dropped after 60 s without a trusted fix,
-    guard after a 2 s gap for at least 5 s and 5 consecutive window tests under the 0.99 gate (9.2);
+    guard after a 2 s gap for at least 5 s and until 5 consecutive fixes pass both tests under the
+    0.9 gate (4.6);
     max_speed_mps bounds the unknown motion where the odometry does not cover a step [5 m/s];
     min_diff_sigma_m floors the per-axis noise of a GPS displacement [0.3 m].
 
@@ -49,7 +50,7 @@ class ConsistencyParams(BaseModel):
     gap_s: float = Field(2.0, gt=0)
     guard_s: float = Field(5.0, ge=0)
     guard_n: int = Field(5, ge=0)
-    guard_gate_prob: float = Field(0.99, gt=0.5, lt=1.0)
+    guard_gate_prob: float = Field(0.9, gt=0.5, lt=1.0)
     max_speed_mps: float = Field(5.0, gt=0)
     min_diff_sigma_m: float = Field(0.3, gt=0)
 

@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from matcher.base import Matcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.covariance import DegeneracyParams, FloorParams, covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
-from matcher.motion import deskew, planar, se3_log, twist_changed
+from matcher.motion import deskew, planar, se3_log, transform, twist_changed
 from matcher.pointplane import point_to_plane_fit
 from matcher.result import MatchResult
 
@@ -127,8 +127,7 @@ class Pcl6d(Matcher):
             res = reg.registration_fgr_based_on_correspondence(
                 src_pcd, tgt_pcd, corres, reg.FastGlobalRegistrationOption(maximum_correspondence_distance=p.ransac_distance_m)
             )
-            inliers = reg.evaluate_registration(src_pcd, tgt_pcd, p.ransac_distance_m, res.transformation)
-            fitness, rmse, n_in = inliers.fitness, inliers.inlier_rmse, len(inliers.correspondence_set)
+            res = reg.evaluate_registration(src_pcd, tgt_pcd, p.ransac_distance_m, res.transformation)
         else:
             o3d.utility.random.seed(p.ransac_seed)
             res = reg.registration_ransac_based_on_correspondence(
@@ -138,11 +137,14 @@ class Pcl6d(Matcher):
                  reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m)],
                 reg.RANSACConvergenceCriteria(p.ransac_max_iterations, p.ransac_confidence),
             )
-            fitness, rmse, n_in = res.fitness, res.inlier_rmse, len(res.correspondence_set)
-        rejected = 1.0 - min(n_in, len(pairs)) / max(len(pairs), 1)
-        info = {"prealign_putative": int(len(pairs)), "prealign_rejected_share": float(rejected),
-                "prealign_fitness": float(fitness), "prealign_rmse": float(rmse)}
-        return np.asarray(res.transformation), info
+        T = np.asarray(res.transformation)
+        # feature correspondences the final transform rejects (the field study's outlier share)
+        src_xyz, tgt_xyz = np.asarray(src_pcd.points)[pairs[:, 0]], np.asarray(tgt_pcd.points)[pairs[:, 1]]
+        residual = np.linalg.norm(transform(src_xyz, T[:3, :3], T[:3, 3]) - tgt_xyz, axis=1)
+        rejected = float((residual > p.ransac_distance_m).mean()) if len(pairs) else 1.0
+        info = {"prealign_putative": int(len(pairs)), "prealign_rejected_share": rejected,
+                "prealign_fitness": float(res.fitness), "prealign_rmse": float(res.inlier_rmse)}
+        return T, info
 
     def _icp(self, src: _Prepared, tgt: _Prepared, init: np.ndarray) -> np.ndarray:
         p = self.p

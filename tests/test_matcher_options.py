@@ -47,7 +47,7 @@ def test_pcl6d_pre_alignment_recovers_a_turn(params, turned_pair):
     m.register(a)
     r = m.register(b)
     assert r.info["prealigned"]
-    assert 0.0 <= r.info["prealign_rejected_share"] <= 1.0 and r.info["prealign_putative"] > 10
+    assert 0.0 < r.info["prealign_rejected_share"] < 0.9 and r.info["prealign_putative"] > 10  # FPFH always mismatches some
     if "skip_icp_min_fitness" in params:
         assert r.info["icp_skipped"]
         _check(r, truth, 1.0, 2.0)  # FPFH + RANSAC on 1 m voxels alone is coarse (and Open3D's threads vary it)

@@ -196,6 +196,19 @@ class Ekf(Estimator):
         h, H, R = self._gps_model(obs)
         return h, H @ self.P @ H.T, R
 
+    def _relock(self, obs: FixObservation) -> None:
+        xy = obs.xy - rot2(self.x[TH]) @ self.lever
+        shift = xy - self.x[X:Y + 1]
+        self.x[X:Y + 1] = xy
+        self.x[CX:CY + 1] += shift
+        self.x[BIAS] = 0.0
+        for block, cov in ((slice(X, Y + 1), obs.cov), (BIAS, np.eye(2) * self._bias_var)):
+            self.P[block, :] = 0.0
+            self.P[:, block] = 0.0
+            self.P[block, block] = cov
+        self.P[CX:CY + 1, X:Y + 1] = self.P[X:Y + 1, CX:CY + 1] = obs.cov
+        self.P[CX:CY + 1, CX:CY + 1] = obs.cov
+
     def _heading(self) -> tuple[float, float]:
         return float(self.x[TH]), float(self.P[TH, TH])
 

@@ -42,6 +42,9 @@ class Estimator:
         self._height_var = math.inf
         sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)
         self._default_odom_cov = np.diag([sxy**2, sxy**2, sxy**2, syaw**2, syaw**2, syaw**2])
+        fxy, fyaw = params.odom_floor_sigma_m, math.radians(params.odom_floor_sigma_yaw_deg)
+        self._odom_floor = np.diag([fxy**2, fxy**2, fyaw**2])
+        self._refused_since: float | None = None  # first refused fix of an unbroken refused run
         self._ref_stamp: float | None = None
         self._last_measured: float | None = None
 
@@ -85,8 +88,26 @@ class Estimator:
         verdict = self.monitor.check(obs, ctx)
         self.monitor.commit(obs, verdict)
         self._use_fix(obs, verdict)
+        self._watch_lock(obs, verdict)
         self._last_measured = obs.stamp
         return verdict
+
+    def _watch_lock(self, obs: FixObservation, verdict: Verdict) -> None:
+        """Re-lock onto GPS when every fix has been refused for relock_s while fixes kept coming."""
+        gap = self._last_measured is None or obs.stamp - self._last_measured > 2.0
+        if verdict.trusted or not self.initialized or gap:
+            self._refused_since = None if verdict.trusted or gap else self._refused_since
+            return
+        if self._refused_since is None:
+            self._refused_since = obs.stamp
+        elif obs.stamp - self._refused_since >= self.params.relock_s:
+            self.events.append(Event(obs.stamp, "fix", f"re-locked onto GPS after {obs.stamp - self._refused_since:.0f} s of refused fixes"))
+            self._relock(obs)
+            self.monitor.reset()
+            self._refused_since = None
+
+    def _relock(self, obs: FixObservation) -> None:
+        """Move the position onto this fix with its uncertainty (heading and motion kept)."""
 
     def _use_fix(self, obs: FixObservation, verdict: Verdict) -> None:
         """Update with a fix the monitor trusts (gps_only overrides: it takes every fix)."""
@@ -151,7 +172,7 @@ class Estimator:
             return np.zeros(3), np.zeros((3, 3)), "match covariance is not a finite 6x6 PSD matrix"
         T_base, cov_base = lidar_to_base(T, cov, self.mount)
         step, step_cov = planar(T_base, cov_base)
-        step_cov = 0.5 * (step_cov + step_cov.T) + np.diag([1e-10, 1e-10, 1e-12])
+        step_cov = 0.5 * (step_cov + step_cov.T) + self._odom_floor + np.diag([1e-10, 1e-10, 1e-12])
         return step, step_cov, ""
 
     def _new_reference(self, stamp: float) -> None:

@@ -11,8 +11,8 @@ DEFAULT_MOUNT = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 1.8
 class EstimatorParams(BaseModel):
     """Shared estimator parameters (defaults in brackets).
 
-    matcher: name of the matcher whose odometry this estimator uses ["kiss_icp", the most reliable
-        on sparse river scans].
+    matcher: name of the matcher whose odometry this estimator uses ["gicp": it reports a
+        covariance with its degenerate directions, which kiss_icp does not].
     monitor / monitor_params: GPS integrity monitor and its parameters (default set per estimator).
     mount: 4x4 base_link<-lidar [identity rotation, lidar 1.8 m above base_link].
     antenna: antenna position on base_link, metres [(0, 0, 1.3)].
@@ -30,11 +30,17 @@ class EstimatorParams(BaseModel):
     init_baseline_m / init_min_fixes / init_max_hdop: start-up alignment needs this much GPS
         travel, this many fixes, each with at most this HDOP [10 m, 5, 2.5].
     default_odom_sigma_m / default_odom_sigma_yaw_deg: per-scan noise assumed when a match has no
-        covariance [0.1 m, 0.5 deg].
+        covariance [0.2 m, 0.5 deg: kiss_icp, which has none, can lose the whole along-track motion
+        of a scan on open water].
+    odom_floor_sigma_m / odom_floor_sigma_yaw_deg: per-scan noise added to every reported match
+        covariance, since Hessian covariances are optimistic [0.03 m, 0.2 deg].
+    relock_s: after this long with every measured fix refused although fixes keep coming, the
+        filter re-locks onto GPS (position reset to the latest fix, monitor restarted), recorded
+        as an event [30 s].
     """
 
     model_config = ConfigDict(extra="forbid")
-    matcher: str = Field("kiss_icp", min_length=1)
+    matcher: str = Field("gicp", min_length=1)
     monitor: str = "consistency"
     monitor_params: dict = Field(default_factory=dict)
     mount: tuple[tuple[float, float, float, float], ...] = DEFAULT_MOUNT
@@ -47,8 +53,11 @@ class EstimatorParams(BaseModel):
     init_baseline_m: float = Field(10.0, gt=0)
     init_min_fixes: int = Field(5, ge=2)
     init_max_hdop: float = Field(2.5, gt=0)
-    default_odom_sigma_m: float = Field(0.1, gt=0)
+    default_odom_sigma_m: float = Field(0.2, gt=0)
     default_odom_sigma_yaw_deg: float = Field(0.5, gt=0)
+    odom_floor_sigma_m: float = Field(0.03, ge=0)
+    odom_floor_sigma_yaw_deg: float = Field(0.2, ge=0)
+    relock_s: float = Field(30.0, gt=0)
 
     @field_validator("mount")
     @classmethod

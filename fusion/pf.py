@@ -233,6 +233,18 @@ class Pf(Estimator):
             self.bias = self.bias[idx]
             self.logw = np.full(n, -math.log(n))
 
+    def _relock(self, obs: FixObservation) -> None:
+        n = self.params.n_particles
+        mean, _ = self._mean_cov(self.poses, 2)
+        target = obs.xy - np.array([[math.cos(mean[2]), -math.sin(mean[2])], [math.sin(mean[2]), math.cos(mean[2])]]) @ self.lever
+        spread = self.rng.standard_normal((n, 2)) @ np.linalg.cholesky(obs.cov).T
+        moved = target - self.poses[:, :2] + spread
+        self.poses[:, :2] += moved
+        self.clones[:, :2] += moved
+        self.bias[:] = 0.0
+        self.bias_cov = np.eye(2) * self._bias_var
+        self.logw = np.full(n, -math.log(n))
+
     def _mean_cov(self, values: np.ndarray, angular: int | None) -> tuple[np.ndarray, np.ndarray]:
         w = self.weights
         mean = w @ values

@@ -13,6 +13,10 @@ from fusion.geometry import compose
 from fusion_streams import StreamSpec, errors, generate, pose_at, run
 
 
+EXACT_ODOMETRY = {"odom_floor_sigma_m": 0.0, "odom_floor_sigma_yaw_deg": 0.0}
+"""The synthetic matcher's covariance is exact: no floor on top of it."""
+
+
 def _initial(t_grid, poses, t=0.0):
     p = pose_at(t_grid, poses, t)
     return (float(p[0]), float(p[1]), math.degrees(p[2]))
@@ -22,7 +26,8 @@ def test_perfect_odometry_without_gps_reproduces_odometry():
     tiny = np.diag([1e-12, 1e-12, 1e-14])
     spec = StreamSpec(duration=40.0, odom_sigma=(0.0, 0.0, 0.0), odom_cov_scale=tiny, no_gps=True)
     events, t_grid, poses = generate(spec)
-    ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(1e-6, 1e-6))
+    ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(1e-6, 1e-6),
+                        odom_floor_sigma_m=0.0, odom_floor_sigma_yaw_deg=0.0)
     chain = np.asarray(pose_at(t_grid, poses, 0.0))
     for kind, stamp, result in events:
         ekf.add_match(stamp, result)
@@ -58,7 +63,7 @@ def _mean_nees(gps_tau: float, filter_tau: float, runs: int = 12) -> np.ndarray:
         x, y, yaw = _initial(t_grid, poses)
         start = (x + rng.normal(0, 1.0), y + rng.normal(0, 1.0), yaw + rng.normal(0, 5.0))
         ekf = fusion.create("ekf", monitor="none", gps_correlation_s=filter_tau, gps_white_sigma_m=0.01,
-                            initial_pose=start, initial_sigma=(1.0, 5.0))
+                            initial_pose=start, initial_sigma=(1.0, 5.0), **EXACT_ODOMETRY)
         out = run(ekf, events)
         err = errors(out, t_grid, poses)
         nees.append(np.einsum("ni,nij,nj->n", err, np.linalg.inv(out["cov"]), err))
@@ -102,7 +107,7 @@ def test_degenerate_odometry_leans_on_gps_along_that_axis(mount_yaw_deg):
                           odom_corrupt=(0.0, 1.0), mount=mount, gps_tau=0.0, seed=3)
         events, t_grid, poses = generate(spec)
         ekf = fusion.create("ekf", monitor="none", initial_pose=_initial(t_grid, poses), gps_correlation_s=0.0,
-                            mount=[list(r) for r in mount])
+                            mount=[list(r) for r in mount], **EXACT_ODOMETRY)
         out = run(ekf, events)
         err = errors(out, t_grid, poses)
         yaw = pose_at(t_grid, poses, 0.0)[2]

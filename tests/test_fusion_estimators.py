@@ -106,3 +106,16 @@ def test_antenna_lever_arm_is_taken_into_account():
         rms[name] = np.sqrt(np.mean(np.sum(err[late, :2] ** 2, axis=1)))
     assert rms["with"] < 0.8
     assert rms["without"] > rms["with"] + 0.5
+
+
+def test_ekf_relocks_onto_gps_after_refusing_every_fix():
+    # A wrong, confident start: the NIS gate refuses every fix until the filter re-locks onto GPS.
+    events, t_grid, poses = generate(StreamSpec(duration=60.0, seed=10))
+    x, y, yaw = _initial(t_grid, poses)
+    ekf = fusion.create("ekf", monitor="nis", initial_pose=(x + 80.0, y - 60.0, yaw), initial_sigma=(0.5, 1.0))
+    out = run(ekf, events)
+    err = errors(out, t_grid, poses)
+    relocks = [e for e in ekf.events if "re-locked" in e.reason]
+    assert len(relocks) == 1 and 30.0 <= relocks[0].stamp < 32.0
+    assert np.hypot(*err[out["stamp"] < 29.0, :2].T).min() > 90.0
+    assert np.hypot(*err[out["stamp"] > 40.0, :2].T).max() < 8.0

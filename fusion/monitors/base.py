@@ -40,5 +40,8 @@ class Monitor:
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
         """Record the decision the estimator acted on (a combination may overrule this monitor)."""
 
+    def reset(self) -> None:
+        """Forget the history (the host re-locked onto GPS)."""
+
     def note_outage(self, stamp: float) -> None:
         """An epoch without a measured position (no fix, dead reckoning or a bad field)."""

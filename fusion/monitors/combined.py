@@ -42,6 +42,10 @@ class CombinedMonitor(Monitor):
         for m in self.members:
             m.commit(obs, verdict)
 
+    def reset(self) -> None:
+        for m in self.members:
+            m.reset()
+
     def note_outage(self, stamp: float) -> None:
         for m in self.members:
             m.note_outage(stamp)

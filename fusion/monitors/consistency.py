@@ -64,6 +64,9 @@ class ConsistencyMonitor(Monitor):
         self.params = params
         self.gate = float(chi2.ppf(params.gate_prob, 2))
         self.guard_gate = float(chi2.ppf(params.guard_gate_prob, 2))
+        self.reset()
+
+    def reset(self) -> None:
         self._history: deque[tuple[FixObservation, bool]] = deque()  # recent fixes and whether trusted
         self._ref: tuple[float, np.ndarray, np.ndarray] | None = None  # stamp, antenna xy, 2x2 cov
         self._ref_trusted_at = -math.inf

@@ -102,16 +102,7 @@ class HDL32E:
         cfg = self.config
         if not np.isfinite(t0):
             raise ValueError(f"lidar: scan start time is not finite ({t0})")
-        knots = trajectory.lidar_poses(t0 + self._knot_t)
-        if not np.isfinite(knots).all():
-            raise ValueError(f"lidar: trajectory gave a NaN pose for the revolution at t0={t0:.3f} s")
-        poses = knots[self._knot_index] + self._knot_frac[:, None, None] * np.diff(knots, axis=0)[self._knot_index]
-        # The 32 lasers of one 46 us firing sequence share its origin (they are < 0.1 mm apart at
-        # 2.5 m/s, below float32 resolution of world coordinates); direction and time are per laser.
-        rays = np.empty((self.n_firings, 32, 6), dtype=np.float32)
-        rays[..., :3] = poses[:-1, None, :3, 3]
-        rays[..., 3:] = np.matmul(self._ray_dir32, poses[:-1, :3, :3].transpose(0, 2, 1).astype(np.float32))
-        rays = rays.reshape(-1, 6)
+        rays = self.rays(trajectory, t0)
         hit = world.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         t_hit = hit["t_hit"].numpy()
         # incidence for every ray in one pass: cheaper than gathering normals and directions
@@ -147,6 +138,19 @@ class HDL32E:
         points["time"] = self.ray_time.ravel()[ray_index]
         points["label"] = part[returned][in_range]
         return Scan(stamp=float(t0), points=points)
+
+    def rays(self, trajectory, t0: float) -> np.ndarray:
+        """(n_firings * 32, 6) float32 world rays (origin, unit direction) of the revolution at t0."""
+        knots = trajectory.lidar_poses(t0 + self._knot_t)
+        if not np.isfinite(knots).all():
+            raise ValueError(f"lidar: trajectory gave a NaN pose for the revolution at t0={t0:.3f} s")
+        poses = knots[self._knot_index] + self._knot_frac[:, None, None] * np.diff(knots, axis=0)[self._knot_index]
+        # The 32 lasers of one 46 us firing sequence share its origin (they are < 0.1 mm apart at
+        # 2.5 m/s, below float32 resolution of world coordinates); direction and time are per laser.
+        rays = np.empty((self.n_firings, 32, 6), dtype=np.float32)
+        rays[..., :3] = poses[:-1, None, :3, 3]
+        rays[..., 3:] = np.matmul(self._ray_dir32, poses[:-1, :3, :3].transpose(0, 2, 1).astype(np.float32))
+        return rays.reshape(-1, 6)
 
     def _blinded(self, t0: float) -> bool:
         return any(a <= t0 <= b for a, b in self.config.blinding)

@@ -209,6 +209,9 @@ class Ekf(Estimator):
         self.P[CX:CY + 1, X:Y + 1] = self.P[X:Y + 1, CX:CY + 1] = obs.cov
         self.P[CX:CY + 1, CX:CY + 1] = obs.cov
 
+    def _body_velocity(self) -> np.ndarray:
+        return self.x[V:VL + 1].copy()
+
     def _heading(self) -> tuple[float, float]:
         return float(self.x[TH]), float(self.P[TH, TH])
 

@@ -16,6 +16,8 @@ from fusion.verdict import Event, Verdict
 from matcher.result import MatchResult
 from sim.gnss_fix import GnssFix
 
+UNOBSERVED_VAR = 1e6
+"""Variance (m^2) given to a match direction that carries no information."""
 HEIGHT_WALK_M2_PER_S = 0.01
 """Random-walk rate of base_link height (water level, waves) in the height filter."""
 
@@ -137,6 +139,7 @@ class Estimator:
             self.events.append(Event(stamp, "match", why))
             self._new_reference(stamp)
             return
+        step_cov = self._slip_allowance(stamp, step_cov)
         rejected = self._odometry(stamp, step, step_cov)
         if rejected:
             self.events.append(Event(stamp, "match", rejected))
@@ -173,7 +176,32 @@ class Estimator:
         T_base, cov_base = lidar_to_base(T, cov, self.mount)
         step, step_cov = planar(T_base, cov_base)
         step_cov = 0.5 * (step_cov + step_cov.T) + self._odom_floor + np.diag([1e-10, 1e-10, 1e-12])
-        return step, step_cov, ""
+        return step, self._drop_unobserved(step_cov), ""
+
+    def _slip_allowance(self, stamp: float, step_cov: np.ndarray) -> np.ndarray:
+        """Add variance along the expected direction of motion for a matcher slipping along it."""
+        velocity = self._body_velocity() if self.initialized else None
+        if velocity is None or self._ref_stamp is None or self.params.odom_slip_frac == 0.0:
+            return step_cov
+        expected = velocity * (stamp - self._ref_stamp)
+        out = step_cov.copy()
+        out[:2, :2] += self.params.odom_slip_frac**2 * np.outer(expected, expected)
+        return out
+
+    def _body_velocity(self) -> np.ndarray | None:
+        """The filter's (forward, left) speed in base_link, if it keeps one."""
+        return None
+
+    def _drop_unobserved(self, step_cov: np.ndarray) -> np.ndarray:
+        """Raise the variance of translation directions the matcher barely observed to 'unknown'."""
+        values, vectors = np.linalg.eigh(step_cov[:2, :2])
+        weak = values > self.params.odom_unobserved_sigma_m**2
+        if not weak.any():
+            return step_cov
+        v = vectors[:, weak]
+        out = step_cov.copy()
+        out[:2, :2] += v @ np.diag(UNOBSERVED_VAR - values[weak]) @ v.T
+        return out
 
     def _new_reference(self, stamp: float) -> None:
         self._ref_stamp = stamp

@@ -34,6 +34,15 @@ class EstimatorParams(BaseModel):
         of a scan on open water].
     odom_floor_sigma_m / odom_floor_sigma_yaw_deg: per-scan noise added to every reported match
         covariance, since Hessian covariances are optimistic [0.03 m, 0.2 deg].
+    odom_slip_frac: scan matchers on sparse river scans often slip along the direction of motion
+        (a flat wall or open water leaves it weakly constrained) with an optimistic covariance; a
+        match's variance along the filter's current direction of motion is raised by
+        (odom_slip_frac * the motion expected since the reference scan)^2 [1.0: on charles_river
+        gicp loses 10-100 % of the along-track motion on about half the scans].
+    odom_unobserved_sigma_m: a match direction whose reported per-scan sigma exceeds this carries no
+        information (a degenerate ICP leaves its prior there, not a measurement): its variance is
+        raised to 1e6 m^2, so that the filter takes that direction from its motion model and GPS
+        [0.5 m, more than the boat moves in a scan].
     relock_s: after this long with every measured fix refused although fixes keep coming, the
         filter re-locks onto GPS (position reset to the latest fix, monitor restarted), recorded
         as an event [30 s].
@@ -57,6 +66,8 @@ class EstimatorParams(BaseModel):
     default_odom_sigma_yaw_deg: float = Field(0.5, gt=0)
     odom_floor_sigma_m: float = Field(0.03, ge=0)
     odom_floor_sigma_yaw_deg: float = Field(0.2, ge=0)
+    odom_unobserved_sigma_m: float = Field(0.5, gt=0)
+    odom_slip_frac: float = Field(1.0, ge=0)
     relock_s: float = Field(30.0, gt=0)
 
     @field_validator("mount")

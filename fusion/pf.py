@@ -267,6 +267,9 @@ class Pf(Estimator):
         mean, cov = self._mean_cov(self._antennas() + self.bias, None)
         return mean, cov + self.bias_cov, np.eye(2) * self.params.gps_white_sigma_m**2
 
+    def _body_velocity(self) -> np.ndarray:
+        return self.weights @ self.vel[:, :2]
+
     def _heading(self) -> tuple[float, float]:
         mean, cov = self._mean_cov(self.poses, 2)
         return float(mean[2]), float(cov[2, 2])

@@ -13,8 +13,8 @@ from fusion.geometry import compose
 from fusion_streams import StreamSpec, errors, generate, pose_at, run
 
 
-EXACT_ODOMETRY = {"odom_floor_sigma_m": 0.0, "odom_floor_sigma_yaw_deg": 0.0}
-"""The synthetic matcher's covariance is exact: no floor on top of it."""
+EXACT_ODOMETRY = {"odom_floor_sigma_m": 0.0, "odom_floor_sigma_yaw_deg": 0.0, "odom_slip_frac": 0.0}
+"""The synthetic matcher's covariance is exact: no floor or slip allowance on top of it."""
 
 
 def _initial(t_grid, poses, t=0.0):
@@ -26,8 +26,7 @@ def test_perfect_odometry_without_gps_reproduces_odometry():
     tiny = np.diag([1e-12, 1e-12, 1e-14])
     spec = StreamSpec(duration=40.0, odom_sigma=(0.0, 0.0, 0.0), odom_cov_scale=tiny, no_gps=True)
     events, t_grid, poses = generate(spec)
-    ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(1e-6, 1e-6),
-                        odom_floor_sigma_m=0.0, odom_floor_sigma_yaw_deg=0.0)
+    ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(1e-6, 1e-6), **EXACT_ODOMETRY)
     chain = np.asarray(pose_at(t_grid, poses, 0.0))
     for kind, stamp, result in events:
         ekf.add_match(stamp, result)

@@ -22,6 +22,8 @@ BLACKOUT = Fault(50.0, 65.0, (0.0, 0.0), blackout=True)
 REACQUIRED = Fault(65.0, 100.0, (18.0, 10.0), tau=10.0)
 JUMP = Fault(110.0, 112.0, (0.0, 20.0))
 FAULTS = [MULTIPATH, BLACKOUT, REACQUIRED, JUMP]
+NO_SLIP = {"odom_slip_frac": 0.0}
+"""The synthetic matcher does not slip along the motion: no allowance for it."""
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +45,7 @@ def test_hdop_misses_multipath_that_consistency_catches(faulty_stream):
     events, t_grid, poses = faulty_stream
     rows = {}
     for name in ("hdop", "consistency", "combined"):
-        out = run(fusion.create("ekf", monitor=name), events)
+        out = run(fusion.create("ekf", monitor=name, **NO_SLIP), events)
         rows[name] = (_labelled(out), errors(out, t_grid, poses), out["stamp"])
     hdop = rows["hdop"][0]
     assert hdop[_in(MULTIPATH, hdop[:, 0]), 1].all()  # HDOP stays low: every multipath fix is trusted
@@ -64,7 +66,7 @@ def test_hdop_misses_multipath_that_consistency_catches(faulty_stream):
 def test_baselines_err_by_metres_through_the_faults(faulty_stream):
     events, t_grid, poses = faulty_stream
     for name in ("gps_only", "hdop_switch"):
-        out = run(fusion.create(name), events)
+        out = run(fusion.create(name, **({} if name == "gps_only" else NO_SLIP)), events)
         err = errors(out, t_grid, poses)
         during = _in(REACQUIRED, out["stamp"]) & (out["stamp"] < 75.0)
         assert np.hypot(err[during, 0], err[during, 1]).max() > 10.0
@@ -72,7 +74,7 @@ def test_baselines_err_by_metres_through_the_faults(faulty_stream):
 
 def test_nis_flags_jumps_against_the_filter(faulty_stream):
     events, _, _ = faulty_stream
-    lab = _labelled(run(fusion.create("ekf", monitor="nis"), events))
+    lab = _labelled(run(fusion.create("ekf", monitor="nis", **NO_SLIP), events))
     t, trusted = lab[:, 0], lab[:, 1].astype(bool)
     assert np.mean(~trusted[_in(MULTIPATH, t)]) > 0.9
     assert np.all(lab[:, 2][np.isfinite(lab[:, 2])] >= 0.0)
@@ -83,7 +85,7 @@ def test_statistic_ranks_faulty_fixes_above_clean_ones(faulty_stream, name, auc_
     # nis is weaker: once the slowly converging post-blackout fix squeezes under its gate, the
     # filter's bias state absorbs the rest; the consistency guard is there for exactly that
     events, _, _ = faulty_stream
-    lab = _labelled(run(fusion.create("ekf", monitor=name), events))
+    lab = _labelled(run(fusion.create("ekf", monitor=name, **NO_SLIP), events))
     ok = lab[:, 0] > 15.0
     stat = np.nan_to_num(lab[ok, 2], nan=-1.0)
     faulty = lab[ok, 3] > 8.0

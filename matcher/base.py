@@ -122,3 +122,32 @@ class Matcher(ABC):
     @abstractmethod
     def _reset(self) -> None:
         """Drop all state (after an internal error)."""
+
+
+class DeskewingMatcher(Matcher):
+    """A matcher whose reference is a scan prepared (de-skewed, filtered) with a motion prior.
+
+    Keeps the reference and the scan just matched; a scan whose match failed is prepared again
+    with the current prior before it becomes the reference, so that no reference is ever
+    de-skewed with a failed estimate."""
+
+    def __init__(self, params: MatcherParams) -> None:
+        super().__init__(params)
+        self._ref = None
+        self._cur = None
+
+    @abstractmethod
+    def _prepare(self, cloud: Cloud, twist: np.ndarray | None):
+        """`cloud` de-skewed with `twist` (per second; None: as it is) and made ready to match."""
+
+    def _start(self, cloud: Cloud) -> None:
+        self._ref = self._prepare(cloud, None)
+
+    def _reset(self) -> None:
+        self._ref = self._cur = None
+
+    def _commit(self, ok: bool) -> None:
+        cur = self._cur
+        if not ok and cur.twist is not self.velocity.twist_per_s:
+            cur = self._prepare(cur.cloud, self.velocity.twist_per_s)
+        self._ref, self._cur = cur, None

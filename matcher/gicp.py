@@ -8,7 +8,7 @@ import numpy as np
 import small_gicp
 from pydantic import Field
 
-from matcher.base import Matcher, MatcherParams
+from matcher.base import DeskewingMatcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.covariance import DegeneracyParams, FloorParams, covariance_from_hessian, right_perturbation_jacobian, to_xyzrpy
 from matcher.motion import deskew, se3_log, twist_changed
@@ -41,7 +41,7 @@ class _Prepared:
         )
 
 
-class Gicp(Matcher):
+class Gicp(DeskewingMatcher):
     """small_gicp GICP of each scan against the previous good one."""
 
     name = "gicp"
@@ -49,20 +49,9 @@ class Gicp(Matcher):
     def __init__(self, params: GicpParams) -> None:
         super().__init__(params)
         self.p = params
-        self._ref: _Prepared | None = None
-        self._cur: _Prepared | None = None
 
-    def _start(self, cloud: Cloud) -> None:
-        self._ref = _Prepared(cloud, None, self.p)
-
-    def _reset(self) -> None:
-        self._ref = self._cur = None
-
-    def _commit(self, ok: bool) -> None:
-        cur = self._cur
-        if not ok and cur.twist is not self.velocity.twist_per_s:  # never keep a scan de-skewed with a failed estimate
-            cur = _Prepared(cur.cloud, self.velocity.twist_per_s, self.p)
-        self._ref, self._cur = cur, None
+    def _prepare(self, cloud: Cloud, twist: np.ndarray | None) -> _Prepared:
+        return _Prepared(cloud, twist, self.p)
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
@@ -70,7 +59,7 @@ class Gicp(Matcher):
         twist = self.velocity.twist_per_s
         ref = self._ref
         for _ in range(p.deskew_iterations):
-            cur = _Prepared(cloud, twist, p)
+            cur = self._prepare(cloud, twist)
             if len(cur.points.points()) < 6 or len(ref.points.points()) < 6:
                 self._cur = cur
                 return MatchResult.failure("too few points after downsampling")
@@ -87,7 +76,7 @@ class Gicp(Matcher):
             T = res.T_target_source
             new_twist = se3_log(T) / dt
             if ref.twist is None:  # the first reference was never de-skewed: use this estimate
-                ref = _Prepared(ref.cloud, new_twist, p)
+                ref = self._prepare(ref.cloud, new_twist)
             if not twist_changed(new_twist, twist, dt):
                 break
             twist = new_twist

@@ -13,7 +13,7 @@ import open3d as o3d
 from pydantic import Field
 from scipy.spatial import cKDTree
 
-from matcher.base import Matcher, MatcherParams
+from matcher.base import DeskewingMatcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.covariance import DegeneracyParams, FloorParams, covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
 from matcher.motion import deskew, planar, se3_log, transform, twist_changed
@@ -87,7 +87,7 @@ class _Prepared:
         return self._features
 
 
-class Pcl6d(Matcher):
+class Pcl6d(DeskewingMatcher):
     """Method 1: filter, FPFH + RANSAC pre-alignment, robust point-to-plane ICP."""
 
     name = "pcl6d"
@@ -95,20 +95,9 @@ class Pcl6d(Matcher):
     def __init__(self, params: Pcl6dParams) -> None:
         super().__init__(params)
         self.p = params
-        self._ref: _Prepared | None = None
-        self._cur: _Prepared | None = None
 
-    def _start(self, cloud: Cloud) -> None:
-        self._ref = _Prepared(cloud, None, self.p)
-
-    def _reset(self) -> None:
-        self._ref = self._cur = None
-
-    def _commit(self, ok: bool) -> None:
-        cur = self._cur
-        if not ok and cur.twist is not self.velocity.twist_per_s:  # never keep a scan de-skewed with a failed estimate
-            cur = _Prepared(cur.cloud, self.velocity.twist_per_s, self.p)
-        self._ref, self._cur = cur, None
+    def _prepare(self, cloud: Cloud, twist: np.ndarray | None) -> _Prepared:
+        return _Prepared(cloud, twist, self.p)
 
     def _prealign(self, src: _Prepared, tgt: _Prepared) -> tuple[np.ndarray, dict]:
         """Global alignment from FPFH correspondences; (T, diagnostics)."""
@@ -186,14 +175,14 @@ class Pcl6d(Matcher):
         T = None if twist is None else self.velocity.predict(dt)
         ref = self._ref
         for _ in range(p.deskew_iterations):
-            cur = _Prepared(cloud, twist, p)
+            cur = self._prepare(cloud, twist)
             self._cur = cur
             if len(cur.points) < 10 or len(ref.points) < 10:
                 return MatchResult.failure("too few points after filtering")
             T, info = self._align(cur, ref, T, dt)
             new_twist = se3_log(T) / dt
             if ref.twist is None:  # the first reference was never de-skewed: use this estimate
-                ref = _Prepared(ref.cloud, new_twist, p)
+                ref = self._prepare(ref.cloud, new_twist)
             if not twist_changed(new_twist, twist, dt):
                 break
             twist = new_twist

@@ -202,18 +202,22 @@ class Ekf(Estimator):
         self.x[X:Y + 1] = xy
         self.x[CX:CY + 1] += shift
         self.x[BIAS] = 0.0
-        for block, cov in ((slice(X, Y + 1), obs.cov), (BIAS, np.eye(2) * self._bias_var)):
+        for block in (slice(X, Y + 1), BIAS, slice(CX, CY + 1)):
             self.P[block, :] = 0.0
             self.P[:, block] = 0.0
-            self.P[block, block] = cov
-        self.P[CX:CY + 1, X:Y + 1] = self.P[X:Y + 1, CX:CY + 1] = obs.cov
-        self.P[CX:CY + 1, CX:CY + 1] = obs.cov
+        for a in (slice(X, Y + 1), slice(CX, CY + 1)):
+            for b in (slice(X, Y + 1), slice(CX, CY + 1)):
+                self.P[a, b] = obs.cov
+        self.P[BIAS, BIAS] = np.eye(2) * self._bias_var
 
     def _body_velocity(self) -> np.ndarray:
         return self.x[V:VL + 1].copy()
 
     def _heading(self) -> tuple[float, float]:
         return float(self.x[TH]), float(self.P[TH, TH])
+
+    def _restart(self) -> None:
+        self._init = False
 
     def _pose3(self) -> np.ndarray:
         return self.x[POSE].copy()

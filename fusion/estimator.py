@@ -39,7 +39,9 @@ class Estimator:
         self.events: list[Event] = []
         self.stamp = -math.inf
         self.odometry = OdometryTrack()
-        self._bootstrap = Bootstrap(params.init_baseline_m, params.init_min_fixes, params.init_max_hdop, self.lever)
+        self._bootstrap = Bootstrap(params.init_baseline_m, params.init_min_fixes, params.init_max_hdop, self.lever,
+                                    params.init_max_yaw_sd_deg)
+        self._alignment: Alignment | None = None  # the latest start-up style alignment, for a re-lock
         self._height = 0.0
         self._height_var = math.inf
         sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)
@@ -84,15 +86,31 @@ class Estimator:
             self.monitor.note_outage(float(stamp))
             return Verdict(False, math.inf if "dead reckoning" in why else math.nan, why)
         self._observe_fix(obs)
+        if self.params.initial_pose is None:
+            self._alignment = self._bootstrap.add(obs, self.odometry)
         if not self.initialized:
             self._try_initialise(obs)
         ctx = self._context(obs)
         verdict = self.monitor.check(obs, ctx)
         self.monitor.commit(obs, verdict)
-        self._use_fix(obs, verdict)
+        try:
+            self._use_fix(obs, verdict)
+        except np.linalg.LinAlgError as err:  # a numerically broken update: skip it, keep running
+            self.events.append(Event(obs.stamp, "fix", f"GPS update failed: {err}"))
         self._watch_lock(obs, verdict)
+        self._check_finite(obs.stamp, "fix")
         self._last_measured = obs.stamp
         return verdict
+
+    def _check_finite(self, stamp: float, source: str) -> None:
+        """A filter whose state went non-finite starts over from the next alignment (recorded)."""
+        if self.initialized and not (np.all(np.isfinite(self._pose3())) and np.all(np.isfinite(self._cov3()))):
+            self.events.append(Event(stamp, source, "filter state became non-finite: starting over"))
+            self._restart()
+
+    def _restart(self) -> None:
+        """Drop the estimate; the next alignment initialises again."""
+        raise NotImplementedError
 
     def _watch_lock(self, obs: FixObservation, verdict: Verdict) -> None:
         """Re-lock onto GPS when every fix has been refused for relock_s while fixes kept coming."""
@@ -103,8 +121,13 @@ class Estimator:
         if self._refused_since is None:
             self._refused_since = obs.stamp
         elif obs.stamp - self._refused_since >= self.params.relock_s:
-            self.events.append(Event(obs.stamp, "fix", f"re-locked onto GPS after {obs.stamp - self._refused_since:.0f} s of refused fixes"))
-            self._relock(obs)
+            fresh = self._alignment is not None and self._alignment.stamp == obs.stamp
+            how = "re-aligned pose and heading" if fresh else "moved the position"
+            self.events.append(Event(obs.stamp, "fix", f"re-locked onto GPS after {obs.stamp - self._refused_since:.0f} s of refused fixes: {how}"))
+            if fresh:
+                self._initialise(self._alignment)
+            else:
+                self._relock(obs)
             self.monitor.reset()
             self._refused_since = None
 
@@ -140,11 +163,15 @@ class Estimator:
             self._new_reference(stamp)
             return
         step_cov = self._slip_allowance(stamp, step_cov)
-        rejected = self._odometry(stamp, step, step_cov)
+        try:
+            rejected = self._odometry(stamp, step, step_cov)
+        except np.linalg.LinAlgError as err:  # a numerically broken update: skip it, keep running
+            rejected = f"odometry update failed: {err}"
         if rejected:
             self.events.append(Event(stamp, "match", rejected))
             self._new_reference(stamp)
             return
+        self._check_finite(stamp, "match")
         self.odometry.add(stamp, step, step_cov)
         self._ref_stamp = stamp
         if not self.initialized and self.params.initial_pose is not None:
@@ -193,15 +220,23 @@ class Estimator:
         return None
 
     def _drop_unobserved(self, step_cov: np.ndarray) -> np.ndarray:
-        """Raise the variance of translation directions the matcher barely observed to 'unknown'."""
+        """Make translation directions the matcher barely observed 'unknown' (variance UNOBSERVED_VAR,
+        uncorrelated with the rest) and cap the heading variance, so that no huge reported variance
+        spoils the arithmetic."""
         values, vectors = np.linalg.eigh(step_cov[:2, :2])
         weak = values > self.params.odom_unobserved_sigma_m**2
-        if not weak.any():
-            return step_cov
-        v = vectors[:, weak]
         out = step_cov.copy()
-        out[:2, :2] += v @ np.diag(UNOBSERVED_VAR - values[weak]) @ v.T
-        return out
+        out[2, 2] = min(out[2, 2], math.pi**2)
+        if not weak.any():
+            return out
+        basis = np.eye(3)
+        basis[:2, :2] = vectors  # columns: the eigen-directions, then yaw
+        local = basis.T @ out @ basis
+        for i in np.flatnonzero(weak):
+            local[i, :] = 0.0
+            local[:, i] = 0.0
+            local[i, i] = UNOBSERVED_VAR
+        return basis @ local @ basis.T
 
     def _new_reference(self, stamp: float) -> None:
         self._ref_stamp = stamp
@@ -214,9 +249,8 @@ class Estimator:
         if self.params.initial_pose is not None:
             self._initialise_from_params(obs.stamp)
             return
-        alignment = self._bootstrap.add(obs, self.odometry)
-        if alignment is not None:
-            self._initialise(alignment)
+        if self._alignment is not None and self._alignment.stamp == obs.stamp:
+            self._initialise(self._alignment)
 
     def _initialise_from_params(self, stamp: float) -> None:
         (x, y, yaw_deg), (sigma_m, sigma_deg) = self.params.initial_pose, self.params.initial_sigma

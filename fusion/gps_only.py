@@ -69,6 +69,9 @@ class GpsOnly(Estimator):
     def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:
         return ""
 
+    def _restart(self) -> None:
+        self._last = None
+
     def _pose3(self) -> np.ndarray:
         xy = self._last.xy - rot2(self._yaw) @ self.lever
         return np.array([xy[0], xy[1], self._yaw])

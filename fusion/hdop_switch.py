@@ -121,6 +121,9 @@ class HdopSwitch(Estimator):
             self._course = None  # an untrusted fix interrupts the course baseline
         super()._use_fix(obs, verdict)
 
+    def _restart(self) -> None:
+        self._init = False
+
     def _pose3(self) -> np.ndarray:
         return self._dead_reckoned()[0]
 

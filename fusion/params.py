@@ -27,8 +27,10 @@ class EstimatorParams(BaseModel):
     initial_pose: (x, y, yaw_deg) of base_link at the first input if known, with initial_sigma
         (metres, degrees) [None, (1.0, 5.0)]; otherwise the pose is found at start-up by aligning
         the odometry track with GPS over init_baseline_m.
-    init_baseline_m / init_min_fixes / init_max_hdop: start-up alignment needs this much GPS
-        travel, this many fixes, each with at most this HDOP [10 m, 5, 2.5].
+    init_baseline_m / init_min_fixes / init_max_hdop / init_max_yaw_sd_deg: start-up alignment
+        needs at least this much GPS travel, this many fixes, each with at most this HDOP, and a
+        heading whose standard deviation (from the fit's residuals) is at most this [10 m, 5, 2.5,
+        5 deg]; a re-lock re-aligns the same way when it can.
     default_odom_sigma_m / default_odom_sigma_yaw_deg: per-scan noise assumed when a match has no
         covariance [0.2 m, 0.5 deg: kiss_icp, which has none, can lose the whole along-track motion
         of a scan on open water].
@@ -62,6 +64,7 @@ class EstimatorParams(BaseModel):
     init_baseline_m: float = Field(10.0, gt=0)
     init_min_fixes: int = Field(5, ge=2)
     init_max_hdop: float = Field(2.5, gt=0)
+    init_max_yaw_sd_deg: float = Field(5.0, gt=0)
     default_odom_sigma_m: float = Field(0.2, gt=0)
     default_odom_sigma_yaw_deg: float = Field(0.5, gt=0)
     odom_floor_sigma_m: float = Field(0.03, ge=0)

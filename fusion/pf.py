@@ -255,6 +255,9 @@ class Pf(Estimator):
             d[:, angular] = wrap(d[:, angular])
         return mean, (d * w[:, None]).T @ d
 
+    def _restart(self) -> None:
+        self._init = False
+
     def _pose3(self) -> np.ndarray:
         return self._mean_cov(self.poses, 2)[0]
 

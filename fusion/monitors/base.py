@@ -29,6 +29,16 @@ class FixContext:
     correlation_s: float = 0.0
 
 
+def mahalanobis2(r: np.ndarray, cov: np.ndarray) -> float:
+    """r' cov^-1 r, or NaN when cov is not finite or not invertible (never raises)."""
+    if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(r))):
+        return float("nan")
+    try:
+        return float(r @ np.linalg.solve(cov, r))
+    except np.linalg.LinAlgError:
+        return float("nan")
+
+
 class Monitor:
     """A GPS integrity monitor. check() has no side effects; commit() records the final decision."""
 

@@ -27,7 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy.stats import chi2
 
 from fusion.geometry import drot2, rot2
-from fusion.monitors.base import FixContext, Monitor
+from fusion.monitors.base import FixContext, Monitor, mahalanobis2
 from fusion.observation import FixObservation
 from fusion.verdict import Verdict
 
@@ -94,7 +94,7 @@ class ConsistencyMonitor(Monitor):
         rho = math.exp(-(obs.stamp - ref.stamp) / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
         gps = (ref.cov + obs.cov) * (1.0 - rho) + np.eye(2) * self.params.min_diff_sigma_m**2
         r = (obs.xy - ref.xy) - moved[0]
-        return float(r @ np.linalg.solve(moved[1] + gps, r))
+        return mahalanobis2(r, moved[1] + gps)
 
     def _reference_at(self, obs: FixObservation, ctx: FixContext) -> tuple[float, np.ndarray, np.ndarray] | None:
         """The reference antenna track carried by the odometry to this fix (None without one)."""
@@ -129,7 +129,7 @@ class ConsistencyMonitor(Monitor):
         ref_d2 = math.nan
         if ref is not None:
             r = obs.xy - ref[1]
-            ref_d2 = float(r @ np.linalg.solve(ref[2] + obs.cov, r))
+            ref_d2 = mahalanobis2(r, ref[2] + obs.cov)
         weight = 1.0
         if ctx.correlation_s > 0 and self._last_measured is not None:
             weight = min(1.0, max(obs.stamp - self._last_measured, 1e-3) / ctx.correlation_s)
@@ -169,6 +169,6 @@ class ConsistencyMonitor(Monitor):
                 self._ref = (obs.stamp, obs.xy.copy(), obs.cov.copy())
             else:
                 stamp, xy, cov = self._ref
-                gain = cov @ np.linalg.inv(cov + obs.cov / weight)
+                gain = cov @ np.linalg.pinv(cov + obs.cov / weight)
                 self._ref = (stamp, xy + gain @ (obs.xy - xy), (np.eye(2) - gain) @ cov)
             self._ref_trusted_at = obs.stamp

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.stats import chi2
 
-from fusion.monitors.base import FixContext, Monitor
+from fusion.monitors.base import FixContext, Monitor, mahalanobis2
 from fusion.observation import FixObservation
 from fusion.verdict import Verdict
 
@@ -32,7 +34,9 @@ class NisMonitor(Monitor):
             return Verdict(False, float("nan"), "filter not initialised")
         mean, cov, noise = ctx.predicted
         y = obs.xy - mean
-        nis = float(y @ np.linalg.solve(cov + noise, y))
+        nis = mahalanobis2(y, cov + noise)
+        if math.isnan(nis):
+            return Verdict(False, nis, "NIS undefined (filter covariance not finite)")
         if nis > self.gate:
             return Verdict(False, nis, f"NIS {nis:.1f} > gate {self.gate:.1f}")
         return Verdict(True, nis, "NIS ok")

@@ -7,7 +7,7 @@ false-alarm rate at each monitor's default gate; the recall reached at <= 5 % fa
 thresholding its statistic (ROC); and the hdop monitor's recall at that same false-alarm rate.
 The ROC curves go to --out as a PNG; the estimators' horizontal errors are printed too.
 
-    .venv/bin/python benchmarks/monitors.py [--world charles_river] [--matcher kiss_icp] [--t-end 600]
+    .venv/bin/python benchmarks/monitors.py [--world charles_river] [--matcher gicp] [--t-end 600]
 """
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ def run_monitors(args) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--world", default="charles_river")
-    parser.add_argument("--matcher", default="kiss_icp")
+    parser.add_argument("--matcher", default="gicp")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="benchmarks/out")
     parser.add_argument("--t-start", type=float, default=0.0)

@@ -7,7 +7,7 @@ matcher and the estimators (gps_only, hdop_switch, ekf, pf at their defaults). T
 estimator's horizontal error (max and mean) during the outage and in the --after s once fixes
 return; a PNG per outage goes to --out.
 
-    .venv/bin/python benchmarks/outages.py [--world charles_river] [--matcher kiss_icp]
+    .venv/bin/python benchmarks/outages.py [--world charles_river] [--matcher gicp]
 """
 
 from __future__ import annotations
@@ -89,7 +89,7 @@ def plot_errors(track: Track, names, window, path: Path, title: str) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--world", default="charles_river")
-    parser.add_argument("--matcher", default="kiss_icp")
+    parser.add_argument("--matcher", default="gicp")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="benchmarks/out")
     parser.add_argument("--min-outage", type=float, default=2.0)

@@ -74,6 +74,7 @@ class Matcher(ABC):
             self.velocity.reset()
         result = self._match(cloud, dt)
         result.n_points = n
+        result.info["ref_stamp"] = self._ref_stamp  # T is relative to the lidar frame at this stamp
         if result.ok:
             reason = self._implausible(result.T, dt)
             if reason:

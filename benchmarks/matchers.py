@@ -32,10 +32,6 @@ TARGET_HZ = {"pcl6d": 10.0, "bev3dof": 100.0, "kiss_icp": 20.0, "gicp": 20.0}
 def structure_stations(world) -> list[float]:
     """Route stations 30 m before each structure recorded in world.params['structures']."""
     structures = world.params.get("structures", [])
-    if isinstance(structures, str):  # tolerate a repr'd list
-        import ast
-
-        structures = ast.literal_eval(structures)
     return [max(float(st["station_m"]) - 30.0, 0.0) for st in structures]
 
 

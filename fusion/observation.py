@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.gnss_fix import GnssFix
+from sim.gnss_fix import GnssFix, SatelliteReport
 
 POSITION_QUALITIES = frozenset({1, 2, 4, 5})
 """GGA qualities that are a measured position: GPS, DGPS, RTK fixed, RTK float."""
@@ -16,7 +16,8 @@ DEAD_RECKONING = 6
 
 @dataclass(frozen=True)
 class FixObservation:
-    """A usable fix: antenna (x, y) in world ENU, its 2x2 covariance, height and its variance."""
+    """A usable fix: antenna (x, y) in world ENU, its 2x2 covariance, height and its variance, and the
+    receiver's per-satellite reports (GSV/GSA: prn, az, el, C/N0, used) for monitors that read them."""
 
     stamp: float
     xy: np.ndarray
@@ -25,6 +26,7 @@ class FixObservation:
     z_var: float
     quality: int
     hdop: float
+    sats: tuple[SatelliteReport, ...] = ()
 
 
 def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[FixObservation | None, str]:
@@ -56,6 +58,7 @@ def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[Fi
             z_var=(uere_m * vdop) ** 2,
             quality=quality,
             hdop=hdop,
+            sats=tuple(getattr(fix, "sats", ()) or ()),
         ),
         "",
     )

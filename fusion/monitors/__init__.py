@@ -1,10 +1,11 @@
-"""GPS integrity monitors: hdop (baseline), nis, consistency, combined, none."""
+"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, combined, none."""
 
 from __future__ import annotations
 
 from pydantic import BaseModel, ValidationError
 
 from fusion.monitors.base import FixContext, Monitor
+from fusion.monitors.cn0 import Cn0Monitor, Cn0Params
 from fusion.monitors.combined import CombinedMonitor, CombinedParams
 from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
 from fusion.monitors.hdop import HdopMonitor, HdopParams
@@ -15,6 +16,7 @@ _MONITORS: dict[str, tuple[type[Monitor], type[BaseModel]]] = {
     "hdop": (HdopMonitor, HdopParams),
     "nis": (NisMonitor, NisParams),
     "consistency": (ConsistencyMonitor, ConsistencyParams),
+    "cn0": (Cn0Monitor, Cn0Params),
     "combined": (CombinedMonitor, CombinedParams),
     "none": (NoMonitor, NoneParams),
 }

@@ -1,0 +1,192 @@
+"""Monitor 'cn0': NLOS satellites (C/N0 below a template learned online) flag the fix; clean ones do not.
+
+Synthetic receiver: C/N0 = horizon + (zenith - horizon) sin(el) + N(0, 1 dB) for a direct signal,
+8 dB less for a reflected-only (NLOS) one, as the field's receivers and the bench's simulator do;
+the monitor never sees these constants, it learns them from the fixes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import fusion
+from fusion import monitors
+from fusion.monitors import FixContext
+from fusion.observation import screen
+from fusion.odometry import OdometryTrack
+from sim.gnss_fix import GnssFix, SatelliteReport
+
+HORIZON_DBHZ, ZENITH_DBHZ, JITTER_DB, NLOS_LOSS_DB = 35.0, 50.0, 1.0, 8.0
+CTX = FixContext(predicted=None, yaw=None, yaw_var=None, lever=np.zeros(2), odometry=OdometryTrack())
+
+
+def make_fix(t: float, el_deg, snr, used=None) -> GnssFix:
+    """A GGA-1 fix at the origin carrying these satellite reports (GSV/GSA fields)."""
+    el_deg, snr = np.asarray(el_deg, float), np.asarray(snr, float)
+    used = np.ones(len(el_deg), bool) if used is None else np.asarray(used, bool)
+    az = (np.arange(len(el_deg)) * 137.5) % 360.0
+    sats = tuple(SatelliteReport(int(i + 1), float(a), float(e), float(s), bool(u)) for i, (a, e, s, u) in enumerate(zip(az, el_deg, snr, used)))
+    return GnssFix(stamp=t, lat=42.35, lon=-71.11, alt=0.0, enu=np.zeros(3), quality=1, num_sats=int(used.sum()),
+                   hdop=1.0, vdop=1.5, pdop=1.8, sats=sats)
+
+
+def direct_cn0(el_deg, rng, offset_db=0.0) -> np.ndarray:
+    el_deg = np.asarray(el_deg, float)
+    return HORIZON_DBHZ + offset_db + (ZENITH_DBHZ - HORIZON_DBHZ) * np.sin(np.deg2rad(el_deg)) + JITTER_DB * rng.standard_normal(el_deg.shape)
+
+
+def feed(mon, fix: GnssFix):
+    """Judge a fix and let the monitor learn from it, as an estimator does."""
+    obs, why = screen(fix, 3.0, False)
+    assert obs is not None, why
+    verdict = mon.check(obs, CTX)
+    mon.commit(obs, verdict)
+    return verdict
+
+
+def clean_epochs(rng, n: int, offset_db=0.0, nlos_share=0.0, n_sats=10):
+    """n epochs of n_sats satellites at random elevations 5-88 deg; a share of them NLOS (8 dB weaker)."""
+    out = []
+    for k in range(n):
+        el = rng.uniform(5.0, 88.0, n_sats)
+        snr = direct_cn0(el, rng, offset_db) - NLOS_LOSS_DB * (rng.random(n_sats) < nlos_share)
+        out.append((0.2 * k, el, snr))
+    return out
+
+
+def warmed(seed=0, offset_db=0.0, nlos_share=0.0, n=400):
+    mon = monitors.create("cn0")
+    for t, el, snr in clean_epochs(np.random.default_rng(seed), n, offset_db, nlos_share):
+        feed(mon, make_fix(t, el, snr))
+    return mon
+
+
+@pytest.fixture(scope="module")
+def learned():
+    return warmed()
+
+
+def test_learns_the_template_and_its_jitter(learned):
+    el = np.array([10.0, 30.0, 60.0, 85.0])
+    expected, sigma = learned.template(el)
+    truth = HORIZON_DBHZ + (ZENITH_DBHZ - HORIZON_DBHZ) * np.sin(np.deg2rad(el))
+    assert np.max(np.abs(expected - truth)) < 0.4
+    assert 0.75 < sigma < 1.3
+
+
+def test_weak_used_satellites_flag_the_fix_and_are_named(learned):
+    rng = np.random.default_rng(1)
+    el = np.array([12.0, 25.0, 40.0, 55.0, 70.0, 80.0, 33.0, 18.0])
+    snr = direct_cn0(el, rng)
+    snr[[2, 5]] -= NLOS_LOSS_DB
+    verdict = learned.check(screen(make_fix(100.0, el, snr), 3.0, False)[0], CTX)
+    assert not verdict.trusted
+    assert 5.0 < verdict.statistic < 11.0
+    assert "PRN 3" in verdict.reason and "PRN 6" in verdict.reason and "PRN 1 " not in verdict.reason
+
+
+def test_a_weak_satellite_the_receiver_did_not_use_is_harmless(learned):
+    rng = np.random.default_rng(2)
+    el = np.array([12.0, 25.0, 40.0, 55.0, 70.0, 80.0])
+    snr = direct_cn0(el, rng)
+    snr[1] -= NLOS_LOSS_DB
+    used = np.array([True, False, True, True, True, True])
+    assert learned.check(screen(make_fix(100.0, el, snr, used), 3.0, False)[0], CTX).trusted
+
+
+def test_clean_fixes_pass_at_the_nominal_false_alarm_rate(learned):
+    # gate 4 sigma: 3e-5 per direct satellite, 3e-4 per 10-satellite fix; allow the template's estimation error
+    rng = np.random.default_rng(3)
+    verdicts = [learned.check(screen(make_fix(100.0 + 0.2 * k, el, snr), 3.0, False)[0], CTX)
+                for k, (_, el, snr) in enumerate(clean_epochs(rng, 3000))]
+    assert np.mean([not v.trusted for v in verdicts]) < 0.003
+
+
+def test_learning_survives_nlos_in_the_training_data():
+    mon = warmed(seed=4, nlos_share=0.15)
+    rng = np.random.default_rng(5)
+    clean = [mon.check(screen(make_fix(100.0, el, snr), 3.0, False)[0], CTX).trusted for _, el, snr in clean_epochs(rng, 1000)]
+    assert np.mean(clean) > 0.99
+    el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
+    snr = direct_cn0(el, rng)
+    snr[0] -= NLOS_LOSS_DB
+    assert not mon.check(screen(make_fix(100.0, el, snr), 3.0, False)[0], CTX).trusted
+
+
+@pytest.mark.parametrize("offset_db", [-5.0, 5.0])
+def test_template_is_learned_not_assumed(offset_db):
+    # the same jitter draws on a receiver 5 dB hotter or colder: identical verdicts after warm-up
+    base, shifted = monitors.create("cn0"), monitors.create("cn0")
+    rng = np.random.default_rng(6)
+    for k, (t, el, snr) in enumerate(clean_epochs(rng, 700, nlos_share=0.05)):
+        if k == 600:
+            snr[:2] -= NLOS_LOSS_DB  # an NLOS pair mid-stream
+        a, b = feed(base, make_fix(t, el, snr)), feed(shifted, make_fix(t, el, snr + offset_db))
+        assert a.trusted == b.trusted
+        if k >= 400:
+            assert "learning" not in a.reason
+            assert a.statistic == pytest.approx(b.statistic, abs=1e-6)
+    assert not feed(base, make_fix(999.0, [20.0, 50.0, 70.0], direct_cn0([20.0, 50.0, 70.0], rng) - [NLOS_LOSS_DB, 0, 0])).trusted
+
+
+def test_during_warm_up_it_says_it_is_learning():
+    mon = monitors.create("cn0")
+    v = feed(mon, make_fix(0.0, [20.0, 40.0, 60.0], [38.0, 44.0, 47.0]))
+    assert v.trusted and math.isnan(v.statistic) and "learning the C/N0 template" in v.reason
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    geometry=st.lists(st.tuples(st.floats(6.0, 89.0), st.booleans(), st.booleans(), st.floats(-2.0, 2.0)), min_size=1, max_size=14),
+    loss_db=st.floats(7.0, 12.0),
+)
+def test_flagged_exactly_when_a_used_satellite_is_nlos(learned, geometry, loss_db):
+    # within +-2 dB of the template a direct signal passes; 7 dB or more below it, flagged
+    el = np.array([g[0] for g in geometry])
+    nlos = np.array([g[1] for g in geometry])
+    used = np.array([g[2] for g in geometry])
+    snr = HORIZON_DBHZ + (ZENITH_DBHZ - HORIZON_DBHZ) * np.sin(np.deg2rad(el)) + np.array([g[3] for g in geometry]) - loss_db * nlos
+    verdict = learned.check(screen(make_fix(100.0, el, snr, used), 3.0, False)[0], CTX)
+    assert verdict.trusted == (not np.any(nlos & used))
+    if used.any():
+        assert verdict.statistic == pytest.approx(np.max(((learned.template(el)[0] - snr) / learned.template(el)[1])[used]))
+
+
+def test_bad_reports_are_skipped_with_a_reason(learned):
+    el = [20.0, 40.0, 60.0, 75.0]
+    snr = direct_cn0(el, np.random.default_rng(7))
+    snr[1] = math.nan
+    v = learned.check(screen(make_fix(100.0, el, snr), 3.0, False)[0], CTX)
+    assert v.trusted and "skipped PRN 2" in v.reason
+    v = learned.check(screen(make_fix(100.0, el, [math.nan] * 4), 3.0, False)[0], CTX)
+    assert v.trusted and math.isnan(v.statistic) and "no used satellite with a valid C/N0" in v.reason
+    v = learned.check(screen(make_fix(100.0, [], []), 3.0, False)[0], CTX)
+    assert v.trusted and math.isnan(v.statistic) and "no used satellite reported" in v.reason
+    before = learned.template(30.0)
+    feed(learned, make_fix(100.0, el, [math.nan, -1.0, 0.0, math.inf]))  # nothing learnable: template unchanged
+    assert learned.template(30.0) == before
+
+
+def test_an_estimator_runs_it_on_bad_fixes_without_crashing():
+    est = fusion.create("ekf", monitor="cn0")
+    rng = np.random.default_rng(8)
+    for t, el, snr in clean_epochs(rng, 50):
+        snr[0] = math.nan
+        verdict = est.add_fix(make_fix(t, el, snr))
+        assert "skipped PRN 1" in verdict.reason or not verdict.trusted
+
+
+def test_parameters_are_validated_by_name():
+    with pytest.raises(ValueError, match="'gate_sigma'"):
+        monitors.create("cn0", gate_sigma=0)
+    with pytest.raises(ValueError, match="high_q"):
+        monitors.create("cn0", mid_q=0.9, high_q=0.8)
+    with pytest.raises(ValueError, match="'bin_count'"):
+        monitors.create("cn0", bin_count=4)
+    mon = monitors.create("combined", members=["nis", "consistency", "cn0"])
+    assert [m.name for m in mon.members] == ["nis", "consistency", "cn0"]

@@ -39,9 +39,10 @@ class EkfParams(EstimatorParams):
     odom_gate_prob: chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a
         matcher failure [0.999999, gate at 30.7].
     gps_white_sigma_m: per-axis white part of the GPS error on top of the correlated bias [0.3].
+    monitor: 'combined_cn0' (consistency + cn0), the best measured by benchmarks/monitors.py.
     """
 
-    monitor: str = "combined"
+    monitor: str = "combined_cn0"
     accel_sigma: float = Field(0.3, gt=0)
     lateral_accel_sigma: float = Field(0.2, gt=0)
     yaw_accel_sigma_deg: float = Field(3.0, gt=0)

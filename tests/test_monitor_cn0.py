@@ -190,3 +190,21 @@ def test_parameters_are_validated_by_name():
         monitors.create("cn0", bin_count=4)
     mon = monitors.create("combined", members=["nis", "consistency", "cn0"])
     assert [m.name for m in mon.members] == ["nis", "consistency", "cn0"]
+
+
+def test_combined_cn0_is_registered_and_the_ekf_default():
+    mon = monitors.create("combined_cn0")
+    assert [m.name for m in mon.members] == ["consistency", "cn0"]
+    with pytest.raises(ValueError, match="cannot contain 'combined'"):
+        monitors.create("combined_cn0", members=["cn0", "combined"])
+    est = fusion.create("ekf")
+    assert est.params.monitor == "combined_cn0"
+    # end to end through the estimator: after warm-up a fix that uses an 8 dB weak satellite is refused
+    rng = np.random.default_rng(9)
+    for t, el, snr in clean_epochs(rng, 300):
+        est.add_fix(make_fix(t, el, snr))
+    el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
+    snr = direct_cn0(el, rng)
+    snr[2] -= NLOS_LOSS_DB
+    verdict = est.add_fix(make_fix(60.0, el, snr))
+    assert not verdict.trusted and "cn0: C/N0 deficit" in verdict.reason and "PRN 3" in verdict.reason

@@ -121,7 +121,7 @@ def test_window_test_cancels_a_constant_bias(bx, by, yaw):
 
 
 def test_registry_validates_names_and_parameters():
-    assert set(monitors.available()) == {"hdop", "nis", "consistency", "cn0", "combined", "none"}
+    assert set(monitors.available()) == {"hdop", "nis", "consistency", "cn0", "combined", "combined_cn0", "none"}
     with pytest.raises(ValueError, match="unknown monitor 'raim'"):
         monitors.create("raim")
     with pytest.raises(ValueError, match="'max_hdop'"):

@@ -1,4 +1,4 @@
-"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, combined, none."""
+"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, combined, combined_cn0, none."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pydantic import BaseModel, ValidationError
 
 from fusion.monitors.base import FixContext, Monitor
 from fusion.monitors.cn0 import Cn0Monitor, Cn0Params
-from fusion.monitors.combined import CombinedMonitor, CombinedParams
+from fusion.monitors.combined import CombinedCn0Params, CombinedMonitor, CombinedParams
 from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
 from fusion.monitors.hdop import HdopMonitor, HdopParams
 from fusion.monitors.nis import NisMonitor, NisParams
@@ -18,6 +18,7 @@ _MONITORS: dict[str, tuple[type[Monitor], type[BaseModel]]] = {
     "consistency": (ConsistencyMonitor, ConsistencyParams),
     "cn0": (Cn0Monitor, Cn0Params),
     "combined": (CombinedMonitor, CombinedParams),
+    "combined_cn0": (CombinedMonitor, CombinedCn0Params),
     "none": (NoMonitor, NoneParams),
 }
 
@@ -43,12 +44,13 @@ def create(name: str, **params) -> Monitor:
         raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())})")
     cls, model = _MONITORS[name]
     p = validate_params(model, params, f"monitor '{name}'")
-    if name == "combined":
-        if "combined" in p.members:
-            raise ValueError("monitor 'combined': parameter 'members' cannot contain 'combined'")
+    if cls is CombinedMonitor:
+        nested = [m for m in p.members if m in _MONITORS and _MONITORS[m][0] is CombinedMonitor]
+        if nested:
+            raise ValueError(f"monitor '{name}': parameter 'members' cannot contain '{nested[0]}'")
         unknown = set(p.member_params) - set(p.members)
         if unknown:
-            raise ValueError(f"monitor 'combined': parameter 'member_params' names a non-member '{sorted(unknown)[0]}'")
+            raise ValueError(f"monitor '{name}': parameter 'member_params' names a non-member '{sorted(unknown)[0]}'")
         return CombinedMonitor(p, [create(m, **p.member_params.get(m, {})) for m in p.members])
     return cls(p)
 

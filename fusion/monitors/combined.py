@@ -1,4 +1,5 @@
-"""Monitor 'combined': distrust a fix when any member monitor does (default nis + consistency)."""
+"""Monitors 'combined' (default nis + consistency) and 'combined_cn0' (default consistency + cn0): distrust a
+fix when any member monitor does."""
 
 from __future__ import annotations
 
@@ -17,6 +18,14 @@ class CombinedParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     members: list[str] = Field(default_factory=lambda: ["nis", "consistency"], min_length=1)
     member_params: dict[str, dict] = Field(default_factory=dict)
+
+
+class CombinedCn0Params(CombinedParams):
+    """The same with members consistency + cn0 by default: the best combination measured by
+    benchmarks/monitors.py (charles_river and canal_lock, gicp odometry): cn0 catches the fixes that
+    use NLOS satellites, consistency the re-acquisition after an outage and displacement jumps."""
+
+    members: list[str] = Field(default_factory=lambda: ["consistency", "cn0"], min_length=1)
 
 
 class CombinedMonitor(Monitor):

@@ -23,32 +23,26 @@ from fusion.estimator import Estimator
 from fusion.geometry import between, compose, drot2, rot2, wrap
 from fusion.monitors import Monitor
 from fusion.observation import FixObservation
-from fusion.params import EstimatorParams
+from fusion.params import MotionModelParams
 
 X, Y, TH, V, VL, W, BX, BY, CX, CY, CTH = range(11)
 N = 11
 POSE, VEL, BIAS, CLONE = slice(0, 3), slice(3, 6), slice(6, 8), slice(8, 11)
 
 
-class EkfParams(EstimatorParams):
+class EkfParams(MotionModelParams):
     """EKF parameters on top of the shared ones (defaults in brackets).
 
-    accel_sigma / lateral_accel_sigma: white-noise acceleration density of the forward and sideways
-        body velocity, m/s^2/sqrt(Hz) [0.3, 0.2]; yaw_accel_sigma_deg: of the yaw rate, deg/s^2/sqrt(Hz)
-        [3.0]; position_walk_sigma: extra position random walk, m/sqrt(s) [0.02].
+    Motion and GPS white-noise parameters: see MotionModelParams.
+    position_walk_sigma: extra position random walk, m/sqrt(s) [0.02].
     odom_gate_prob: chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a
         matcher failure [0.999999, gate at 30.7].
-    gps_white_sigma_m: per-axis white part of the GPS error on top of the correlated bias [0.3].
     monitor: 'combined_cn0' (consistency + cn0), the best measured by benchmarks/monitors.py.
     """
 
     monitor: str = "combined_cn0"
-    accel_sigma: float = Field(0.3, gt=0)
-    lateral_accel_sigma: float = Field(0.2, gt=0)
-    yaw_accel_sigma_deg: float = Field(3.0, gt=0)
     position_walk_sigma: float = Field(0.02, ge=0)
     odom_gate_prob: float = Field(0.999999, gt=0.5, lt=1.0)
-    gps_white_sigma_m: float = Field(0.3, gt=0)
 
 
 class Ekf(Estimator):

@@ -82,3 +82,18 @@ class EstimatorParams(BaseModel):
         if not np.allclose(m[3], (0, 0, 0, 1)) or not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-6):
             raise ValueError("must be a rigid transform (rotation and translation)")
         return mount
+
+
+class MotionModelParams(EstimatorParams):
+    """Vessel motion and GPS error model shared by the ekf and the pf (defaults in brackets).
+
+    accel_sigma / lateral_accel_sigma: white-noise acceleration density of the forward and sideways
+    body velocity, m/s^2/sqrt(Hz) [0.3, 0.2]; yaw_accel_sigma_deg: of the yaw rate,
+    deg/s^2/sqrt(Hz) [3.0]; gps_white_sigma_m: per-axis white part of the GPS error on top of the
+    correlated bias [0.3].
+    """
+
+    accel_sigma: float = Field(0.3, gt=0)
+    lateral_accel_sigma: float = Field(0.2, gt=0)
+    yaw_accel_sigma_deg: float = Field(3.0, gt=0)
+    gps_white_sigma_m: float = Field(0.3, gt=0)

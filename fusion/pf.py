@@ -25,33 +25,27 @@ from fusion.estimator import Estimator
 from fusion.geometry import between, wrap
 from fusion.monitors import Monitor
 from fusion.observation import FixObservation
-from fusion.params import EstimatorParams
+from fusion.params import MotionModelParams
 from sim.rng import stream
 
 
-class PfParams(EstimatorParams):
+class PfParams(MotionModelParams):
     """PF parameters on top of the shared ones (defaults in brackets).
 
     n_particles [500]; gps_dof: Student-t degrees of freedom of the GPS likelihood [3];
-    accel_sigma / lateral_accel_sigma (m/s^2/sqrt(Hz)) and yaw_accel_sigma_deg as in the ekf
-    [0.3, 0.2, 3.0]; resample_ess: resample when the effective sample size falls below this share
+    motion and GPS white-noise parameters: see MotionModelParams; resample_ess: resample when the effective sample size falls below this share
     of n_particles [0.5]; resampling is regularised (Liu-West shrinkage and a kernel shaped like the
     posterior, optimal bandwidth) plus a floor roughen_m / roughen_deg [0.02, 0.1];
-    seed: of the filter's random stream [0]; gps_white_sigma_m: white part of the GPS error on top
-    of the correlated bias, per axis [0.3].
+    seed: of the filter's random stream [0].
     """
 
     monitor: str = "none"
     n_particles: int = Field(500, ge=10)
     gps_dof: float = Field(3.0, gt=0)
-    accel_sigma: float = Field(0.3, gt=0)
-    lateral_accel_sigma: float = Field(0.2, gt=0)
-    yaw_accel_sigma_deg: float = Field(3.0, gt=0)
     resample_ess: float = Field(0.5, gt=0, le=1)
     roughen_m: float = Field(0.02, ge=0)
     roughen_deg: float = Field(0.1, ge=0)
     seed: int = 0
-    gps_white_sigma_m: float = Field(0.3, gt=0)
 
 
 def _rot_batch(yaw: np.ndarray) -> np.ndarray:

@@ -114,6 +114,49 @@ class GnssConfig(BaseModel):
         return value
 
 
+class _Navigator:
+    """One chain from raw WLS solutions to reported fixes: the WLS start point, the receiver's
+    navigation filter, and its coast-then-invalid logic."""
+
+    def __init__(self, config: GnssConfig):
+        self.config = config
+        self.filter = CvKalman(config.filter)
+        self.start = np.zeros(4)
+        self.last_raw_t = -np.inf
+        self.last_raw_enu: np.ndarray | None = None
+
+    def solve(self, sat_enu: np.ndarray, pseudorange: np.ndarray, sigma: np.ndarray) -> wls.Solution | None:
+        """This epoch's raw solution from the tracked satellites, or None (fewer than 4, or PDOP over the mask)."""
+        if len(pseudorange) < 4:
+            return None
+        solution = wls.solve(sat_enu, pseudorange, sigma, self.start)
+        self.start = np.append(solution.enu, solution.clock_m)
+        return solution if solution.pdop <= self.config.pdop_mask else None
+
+    def step(self, t: float, solution: wls.Solution | None) -> tuple[np.ndarray, np.ndarray, int]:
+        """Reported ENU position, velocity and GGA quality from this epoch's raw solution (or none)."""
+        nothing = np.full(3, np.nan)
+        rate_hz = self.config.rate_hz
+        if self.config.filter_mode == "raw":
+            if solution is None:
+                return nothing, nothing, 0
+            velocity = nothing
+            if self.last_raw_enu is not None and t - self.last_raw_t <= 1.5 / rate_hz:
+                velocity = (solution.enu - self.last_raw_enu) / (t - self.last_raw_t)
+            self.last_raw_t, self.last_raw_enu = t, solution.enu
+            return solution.enu.copy(), velocity, 1
+        kf = self.filter
+        kf.predict(t)
+        if solution is not None:
+            kf.update(solution.enu, solution.cov)
+            self.last_raw_t = t
+            return kf.position, kf.velocity, 1
+        if kf.initialised and t - self.last_raw_t <= self.config.coast_limit_s:
+            return kf.position, kf.velocity, 6
+        kf.reset()
+        return nothing, nothing, 0
+
+
 @dataclass
 class _WorldGeometry:
     """What the receiver derives once per world: the facade index and the local ENU frame."""
@@ -132,14 +175,12 @@ class GnssReceiver:
         self.constellation = Constellation.nominal()
         self._errors = RangeErrors(self.config.noise, len(self.constellation), stream(self.seed, "gnss.range_errors"))
         self._cn0_rng = stream(self.seed, "gnss.cn0")
-        self._filter = CvKalman(self.config.filter)
+        self._navigator = _Navigator(self.config)
+        self._open_sky = _Navigator(self.config)
         self._offset = np.array(self.config.antenna_offset_m, dtype=float)
         self._mask = np.deg2rad(self.config.elevation_mask_deg)
         self._worlds: dict[int, _WorldGeometry] = {}
         self._last_t: float | None = None
-        self._last_raw_t = -np.inf
-        self._last_raw_enu: np.ndarray | None = None
-        self._start: np.ndarray | None = None
 
     @property
     def rate_hz(self) -> float:
@@ -184,8 +225,8 @@ class GnssReceiver:
         # Signal strength and tracking.
         mp = self.config.multipath
         noise = self.config.noise
-        cn0 = noise.cn0(el) + np.where(nlos, 20.0 * np.log10(mp.reflection_amplitude), 0.0)
-        cn0 = cn0 + noise.cn0_jitter_db * self._cn0_rng.standard_normal(len(view))
+        cn0_open_sky = noise.cn0(el) + noise.cn0_jitter_db * self._cn0_rng.standard_normal(len(view))
+        cn0 = cn0_open_sky + np.where(nlos, 20.0 * np.log10(mp.reflection_amplitude), 0.0)
         tracked = (los | nlos) & (cn0 >= noise.tracking_threshold_dbhz)
         if any(w.start_s <= t < w.end_s for w in self.config.forced_outages):
             tracked[:] = False
@@ -202,17 +243,14 @@ class GnssReceiver:
         bias += self._forced_bias(t, view, dirs)
         slow, white = self._errors.advance(t)
         mapping = 1.0 / np.sin(el)
-        pseudorange = geometric + self._errors.clock_m(t) + mapping * (slow[view] + white[view]) + bias
+        open_sky_range = geometric + self._errors.clock_m(t) + mapping * (slow[view] + white[view])
+        pseudorange = open_sky_range + bias
+        sigma = noise.sigma(el)
 
-        solution = None
-        if tracked.sum() >= 4:
-            if self._start is None:
-                self._start = np.zeros(4)
-            solution = wls.solve(sat_enu[tracked], pseudorange[tracked], noise.sigma(el[tracked]), self._start)
-            self._start = np.append(solution.enu, solution.clock_m)
-            if solution.pdop > self.config.pdop_mask:
-                solution = None
-        enu, velocity, quality = self._navigate(t, solution)
+        solution = self._navigator.solve(sat_enu[tracked], pseudorange[tracked], sigma[tracked])
+        enu, velocity, quality = self._navigator.step(t, solution)
+        clear = cn0_open_sky >= noise.tracking_threshold_dbhz
+        open_sky_enu = self._open_sky.step(t, self._open_sky.solve(sat_enu[clear], open_sky_range[clear], sigma[clear]))[0]
 
         prn = self.constellation.prn[view].tolist()
         az = (np.rad2deg(np.arctan2(dirs[:, 0], dirs[:, 1])) % 360.0).tolist()
@@ -236,7 +274,7 @@ class GnssReceiver:
             pdop=solution.pdop if solution else np.nan,
             sats=sats,
             utc=utc.isoformat(timespec="microseconds"),
-            truth=FixTruth(enu=antenna, error=enu - antenna, sats=sat_truth),
+            truth=FixTruth(enu=antenna, error=enu - antenna, sats=sat_truth, open_sky_error=open_sky_enu - antenna),
             speed_mps=speed,
             course_deg=course,
         )
@@ -276,25 +314,3 @@ class GnssReceiver:
                 if window.prn is not None:
                     bias[self.constellation.prn[view] == window.prn] += window.range_m
         return bias
-
-    def _navigate(self, t: float, solution: wls.Solution | None) -> tuple[np.ndarray, np.ndarray, int]:
-        """Reported ENU position, velocity and GGA quality from this epoch's raw solution (or none)."""
-        nothing = np.full(3, np.nan)
-        if self.config.filter_mode == "raw":
-            if solution is None:
-                return nothing, nothing, 0
-            velocity = nothing
-            if self._last_raw_enu is not None and t - self._last_raw_t <= 1.5 / self.rate_hz:
-                velocity = (solution.enu - self._last_raw_enu) / (t - self._last_raw_t)
-            self._last_raw_t, self._last_raw_enu = t, solution.enu
-            return solution.enu.copy(), velocity, 1
-        kf = self._filter
-        kf.predict(t)
-        if solution is not None:
-            kf.update(solution.enu, solution.cov)
-            self._last_raw_t = t
-            return kf.position, kf.velocity, 1
-        if kf.initialised and t - self._last_raw_t <= self.config.coast_limit_s:
-            return kf.position, kf.velocity, 6
-        kf.reset()
-        return nothing, nothing, 0

@@ -35,6 +35,10 @@ class FixTruth:
     enu: np.ndarray
     error: np.ndarray
     sats: tuple[SatelliteTruth, ...] = ()
+    open_sky_error: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    """The error this receiver would report under an open sky (same range errors and C/N0 draws, no
+    blockage, reflections or forced faults): its nominal error, which no relative sensor (odometry)
+    can observe. error - open_sky_error is what the environment added."""
 
 
 @dataclass(frozen=True)

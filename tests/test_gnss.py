@@ -123,6 +123,33 @@ def test_after_an_outage_the_filter_follows_a_wrong_estimate_and_converges_slowl
     assert err[89.8] < 0.2
 
 
+def test_open_sky_error_equals_the_error_where_nothing_blocks_or_reflects():
+    rx = GnssReceiver(seed=4)
+    world, motion = gw.open_water(), gw.Straight()
+    for t in rx.epochs(30.0):
+        fix = rx.fix(world, motion, t)
+        np.testing.assert_array_equal(fix.truth.open_sky_error, fix.truth.error)
+
+
+def test_open_sky_error_separates_the_environment_from_the_nominal_error():
+    # Same seed, same range errors: the canyon's receiver and an open-water receiver share the
+    # nominal error exactly; the canyon adds NLOS errors on top, and forced faults are not nominal.
+    canyon = gw.canyon(north_y=20.0, south_y=-20.0, height=25.0, x0=0.0, x1=300.0)
+    forced = [{"start_s": 40.0, "end_s": 50.0}]
+    walled = GnssReceiver(seed=3, forced_outages=forced)
+    clear = GnssReceiver(seed=3)
+    motion, open_water = gw.Straight(speed=2.0, x0=0.0), gw.open_water()
+    added = []
+    for t in walled.epochs(120.0):
+        w, c = walled.fix(canyon, motion, t), clear.fix(open_water, motion, t)
+        np.testing.assert_allclose(w.truth.open_sky_error, c.truth.error, atol=1e-9)
+        if w.quality == 1:
+            added.append(np.linalg.norm((w.truth.error - w.truth.open_sky_error)[:2]))
+        if 40.0 <= t < 50.0:
+            assert w.quality != 1 and np.isfinite(w.truth.open_sky_error).all()
+    assert max(added) > 10.0, "NLOS in the canyon adds metres to the nominal error"
+
+
 def test_wall_canyon_gives_nlos_errors_over_10m_with_low_hdop_that_vanish_in_open_water():
     world = gw.canyon(north_y=20.0, south_y=-20.0, height=25.0, x0=0.0, x1=300.0)
     rx = GnssReceiver(seed=3)

@@ -107,6 +107,29 @@ def test_clean_fixes_pass_at_the_nominal_false_alarm_rate(learned):
     assert np.mean([not v.trusted for v in verdicts]) < 0.003
 
 
+@pytest.mark.parametrize("hold_s", [0.0, 6.0])
+def test_an_nlos_fix_is_held_for_hold_s_as_the_receiver_filter_still_carries_it(hold_s):
+    mon = monitors.create("cn0", hold_s=hold_s)
+    rng = np.random.default_rng(9)
+    for t, el, snr in clean_epochs(rng, 400):
+        feed(mon, make_fix(t, el, snr))
+    el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
+    snr = direct_cn0(el, rng)
+    snr[1] -= 2 * NLOS_LOSS_DB
+    flagged = feed(mon, make_fix(100.0, el, snr))
+    assert not flagged.trusted
+    after = {round(0.2 * k, 1): feed(mon, make_fix(100.0 + 0.2 * k, el, direct_cn0(el, rng))) for k in range(1, 40)}
+    for dt, verdict in after.items():
+        if dt == hold_s:
+            continue  # on the boundary, float rounding decides
+        held = dt < hold_s
+        assert verdict.trusted != held, (dt, verdict.reason)
+        if held:
+            assert verdict.statistic == flagged.statistic and "within 6 s" in verdict.reason
+        else:
+            assert verdict.statistic < mon.gate
+
+
 def test_learning_survives_nlos_in_the_training_data():
     mon = warmed(seed=4, nlos_share=0.15)
     rng = np.random.default_rng(5)

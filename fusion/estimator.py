@@ -162,7 +162,7 @@ class Estimator:
             self.events.append(Event(stamp, "match", why))
             self._new_reference(stamp)
             return
-        step_cov = self._slip_allowance(stamp, step_cov)
+        step_cov = self._slip_allowance(stamp, step, step_cov)
         try:
             rejected = self._odometry(stamp, step, step_cov)
         except np.linalg.LinAlgError as err:  # a numerically broken update: skip it, keep running
@@ -205,12 +205,25 @@ class Estimator:
         step_cov = 0.5 * (step_cov + step_cov.T) + self._odom_floor + np.diag([1e-10, 1e-10, 1e-12])
         return step, self._drop_unobserved(step_cov), ""
 
-    def _slip_allowance(self, stamp: float, step_cov: np.ndarray) -> np.ndarray:
-        """Add variance along the expected direction of motion for a matcher slipping along it."""
+    def _slip_allowance(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> np.ndarray:
+        """Matchers on weakly constrained river scenes slip along the direction of motion with a tight
+        covariance: a match that keeps less of the motion the filter expects along it than
+        odom_slip_sigmas of its own sigma has that direction made unobserved; otherwise the variance
+        along it is raised by (odom_slip_frac * the expected motion)^2."""
         velocity = self._body_velocity() if self.initialized else None
-        if velocity is None or self._ref_stamp is None or self.params.odom_slip_frac == 0.0:
+        if velocity is None or self._ref_stamp is None:
             return step_cov
         expected = velocity * (stamp - self._ref_stamp)
+        length = float(np.hypot(*expected))
+        if length == 0.0:
+            return step_cov
+        u = expected / length
+        sigma = math.sqrt(float(u @ step_cov[:2, :2] @ u))
+        k = self.params.odom_slip_sigmas
+        if k > 0 and length - float(u @ step[:2]) > k * sigma:
+            out = step_cov.copy()
+            out[:2, :2] += UNOBSERVED_VAR * np.outer(u, u)
+            return out
         out = step_cov.copy()
         out[:2, :2] += self.params.odom_slip_frac**2 * np.outer(expected, expected)
         return out

@@ -36,11 +36,15 @@ class EstimatorParams(BaseModel):
         of a scan on open water].
     odom_floor_sigma_m / odom_floor_sigma_yaw_deg: per-scan noise added to every reported match
         covariance, since Hessian covariances are optimistic [0.03 m, 0.2 deg].
-    odom_slip_frac: scan matchers on sparse river scans often slip along the direction of motion
-        (a flat wall or open water leaves it weakly constrained) with an optimistic covariance; a
-        match's variance along the filter's current direction of motion is raised by
-        (odom_slip_frac * the motion expected since the reference scan)^2 [1.0: on charles_river
-        gicp loses 10-100 % of the along-track motion on about half the scans].
+    odom_slip_sigmas / odom_slip_frac: scan matchers on sparse river scans often slip along the
+        direction of motion (a flat wall, a deck overhead or open water leaves it weakly
+        constrained) with an optimistic covariance. A match that falls short of the motion the
+        filter expects along that direction by more than odom_slip_sigmas of its own sigma slipped:
+        that direction is made unobserved (under a charles_river bridge gicp reports no motion at
+        all, +-1 cm, for 15 s; taking it drags the velocity to zero). Any other match has its
+        variance along the direction of motion raised by (odom_slip_frac * the expected motion)^2
+        [3.0, 1.0: gicp loses 10-100 % of the along-track motion on about half of the basin's scans;
+        0 turns either off].
     odom_unobserved_sigma_m: a match direction whose reported per-scan sigma exceeds this carries no
         information (a degenerate ICP leaves its prior there, not a measurement): its variance is
         raised to 1e6 m^2, so that the filter takes that direction from its motion model and GPS
@@ -71,6 +75,7 @@ class EstimatorParams(BaseModel):
     odom_floor_sigma_yaw_deg: float = Field(0.2, ge=0)
     odom_unobserved_sigma_m: float = Field(0.5, gt=0)
     odom_slip_frac: float = Field(1.0, ge=0)
+    odom_slip_sigmas: float = Field(3.0, ge=0)
     relock_s: float = Field(30.0, gt=0)
 
     @field_validator("mount")
@@ -88,12 +93,14 @@ class MotionModelParams(EstimatorParams):
     """Vessel motion and GPS error model shared by the ekf and the pf (defaults in brackets).
 
     accel_sigma / lateral_accel_sigma: white-noise acceleration density of the forward and sideways
-    body velocity, m/s^2/sqrt(Hz) [0.3, 0.2]; yaw_accel_sigma_deg: of the yaw rate,
+    body velocity, m/s^2/sqrt(Hz) [0.1, 0.05: a cruising ASV changes speed slowly (the simulated
+    trajectory's forward acceleration has a standard deviation of 0.02 m/s^2) and hardly
+    crabs; a stiffer velocity also lets a slipping matcher drag it less]; yaw_accel_sigma_deg: of the yaw rate,
     deg/s^2/sqrt(Hz) [3.0]; gps_white_sigma_m: per-axis white part of the GPS error on top of the
     correlated bias [0.3].
     """
 
-    accel_sigma: float = Field(0.3, gt=0)
-    lateral_accel_sigma: float = Field(0.2, gt=0)
+    accel_sigma: float = Field(0.1, gt=0)
+    lateral_accel_sigma: float = Field(0.05, gt=0)
     yaw_accel_sigma_deg: float = Field(3.0, gt=0)
     gps_white_sigma_m: float = Field(0.3, gt=0)

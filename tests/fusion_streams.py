@@ -40,6 +40,7 @@ class StreamSpec:
     odom_sigma: tuple[float, float, float] = (0.03, 0.03, math.radians(0.2))
     odom_cov_scale: np.ndarray | None = None  # reported 3x3 body-frame covariance if given
     odom_corrupt: tuple[float, float] = (1.0, 1.0)  # multiply true (dx, dy) before noise
+    corrupt_from_s: float = 0.0  # ...in the scans from this time on
     hdop: float = 1.0
     uere: float = 3.0
     gps_noise: bool = True
@@ -94,7 +95,8 @@ def generate(spec: StreamSpec) -> tuple[list[tuple], np.ndarray, np.ndarray]:
             result = MatchResult.failure("always fails")
         else:
             step = between(prev, pose)
-            step[:2] *= spec.odom_corrupt
+            if ts >= spec.corrupt_from_s:
+                step[:2] *= spec.odom_corrupt
             step = step + sigma * rng_odo.standard_normal(3)  # noise as odom_sigma, reported as odom_cov_scale
             cov6 = np.diag([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6])
             idx = [0, 1, 5]

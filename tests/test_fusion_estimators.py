@@ -84,7 +84,7 @@ def test_pf_leans_on_gps_along_a_degenerate_axis():
     spec = StreamSpec(duration=60.0, turn_amp_dps=0.0, odom_sigma=(0, 0, 0), odom_cov_scale=degenerate,
                       odom_corrupt=(0.0, 1.0), seed=3)
     events, t_grid, poses = generate(spec)
-    out = run(fusion.create("pf", initial_pose=_initial(t_grid, poses), odom_slip_frac=0.0), events)  # no slip here
+    out = run(fusion.create("pf", initial_pose=_initial(t_grid, poses), odom_slip_frac=0.0, odom_slip_sigmas=0.0), events)  # no slip here
     err = errors(out, t_grid, poses)
     late = out["stamp"] > 20.0
     gps = np.array([f.truth.error[:2] for k, t, f in events if k == "fix" and t > 20.0])

@@ -22,7 +22,7 @@ BLACKOUT = Fault(50.0, 65.0, (0.0, 0.0), blackout=True)
 REACQUIRED = Fault(65.0, 100.0, (18.0, 10.0), tau=10.0)
 JUMP = Fault(110.0, 112.0, (0.0, 20.0))
 FAULTS = [MULTIPATH, BLACKOUT, REACQUIRED, JUMP]
-NO_SLIP = {"odom_slip_frac": 0.0}
+NO_SLIP = {"odom_slip_frac": 0.0, "odom_slip_sigmas": 0.0}
 """The synthetic matcher does not slip along the motion: no allowance for it."""
 
 

@@ -113,8 +113,12 @@ class Estimator:
         raise NotImplementedError
 
     def _watch_lock(self, obs: FixObservation, verdict: Verdict) -> None:
-        """Re-lock onto GPS when every fix has been refused for relock_s while fixes kept coming."""
+        """Re-lock onto GPS when every fix has been refused for relock_s while fixes kept coming, onto a
+        fix refused only for disagreeing with the filter (one refused on its own evidence, such as
+        an NLOS C/N0, is no sign that the filter diverged, and no place to re-lock onto)."""
         gap = self._last_measured is None or obs.stamp - self._last_measured > 2.0
+        if verdict.on_its_own and not gap:
+            return
         if verdict.trusted or not self.initialized or gap:
             self._refused_since = None if verdict.trusted or gap else self._refused_since
             return

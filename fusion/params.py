@@ -51,7 +51,8 @@ class EstimatorParams(BaseModel):
         [0.5 m, more than the boat moves in a scan].
     relock_s: after this long with every measured fix refused although fixes keep coming, the
         filter re-locks onto GPS (position reset to the latest fix, monitor restarted), recorded
-        as an event [30 s].
+        as an event; fixes refused on their own evidence (an NLOS C/N0, a high HDOP) neither count
+        nor become the re-lock point [30 s].
     """
 
     model_config = ConfigDict(extra="forbid")

@@ -110,10 +110,10 @@ class Cn0Monitor(Monitor):
         held = [d for t, d in self._recent if obs.stamp - self.params.hold_s <= t < obs.stamp]
         statistic = max([deficit, *held])
         if deficit > self.gate:
-            return Verdict(False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note)
+            return Verdict(False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note, on_its_own=True)
         if statistic > self.gate:
             return Verdict(False, statistic, f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s "
-                           "(the receiver's filter still carries it)" + note)
+                           "(the receiver's filter still carries it)" + note, on_its_own=True)
         return Verdict(True, statistic, "C/N0 consistent with a direct signal" + note)
 
     def _deficit(self, obs: FixObservation) -> tuple[float, float | None, str, str]:

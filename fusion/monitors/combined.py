@@ -44,7 +44,8 @@ class CombinedMonitor(Monitor):
         statistic = max(finite) if finite else math.nan
         refused = [f"{m.name}: {v.reason}" for m, v in zip(self.members, verdicts) if not v.trusted]
         if refused:
-            return Verdict(False, statistic, "; ".join(refused))
+            on_its_own = any(v.on_its_own for v in verdicts if not v.trusted)
+            return Verdict(False, statistic, "; ".join(refused), on_its_own=on_its_own)
         return Verdict(True, statistic, "all members trust it")
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:

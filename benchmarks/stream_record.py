@@ -2,11 +2,13 @@
 
 Simulating the LiDAR and matching dominate a route's wall time; the monitors and estimators under
 test only need each scan's MatchResult, each GnssFix and the truth pose per scan. A recording is
-pickled under benchmarks/out keyed by world, matcher, seed and span, and reused when present.
+pickled under benchmarks/out keyed by world, matcher, seed, span and a digest of the simulating
+code (worlds/, sim/, matcher/, scenarios/stream.py), and reused when present.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import pickle
 import time
@@ -54,10 +56,20 @@ def record(world_name: str, matcher_name: str, seed: int, t_start: float, t_end:
     return Recording(world_name, matcher_name, seed, t_start, float(t_end), items, time.perf_counter() - start)
 
 
+def code_digest() -> str:
+    """Short digest of every source file that shapes a recording, so a code change records afresh."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for path in sorted([*root.glob("worlds/*.py"), *root.glob("sim/*.py"), *root.glob("matcher/*.py"), root / "scenarios" / "stream.py"]):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:10]
+
+
 def load_or_record(out: Path, world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None) -> Recording:
     """The cached recording for these settings, or a fresh one written atomically (temp name, then rename)."""
     span = f"{t_start:g}-{'end' if t_end is None else f'{t_end:g}'}"
-    path = out / f"stream_{world_name}_{matcher_name}_s{seed}_{span}.pkl"
+    path = out / f"stream_{world_name}_{matcher_name}_s{seed}_{span}_{code_digest()}.pkl"
     if path.exists():
         with path.open("rb") as f:
             rec = pickle.load(f)

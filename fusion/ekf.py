@@ -183,6 +183,13 @@ class Ekf(Estimator):
             self.P[BIAS, BIAS] = np.eye(2) * var  # initialised before any fix: as uncertain as the receiver
         self._bias_var = var
 
+    def _observe_outage(self) -> None:
+        """Through an outage the bias's level relaxes to the receiver's error at HDOP 1, not that of the
+        last fix (often a high-HDOP one at a deck's edge: HDOP 10 before charles_river's 2463 s
+        outage grew the bias sd to 17 m, which then soaked up the dead-reckoning drift)."""
+        white = self.params.gps_white_sigma_m**2
+        self._bias_var = min(self._bias_var, max(self.params.uere_m**2 / 2.0 - white, white))
+
     def _update_fix(self, obs: FixObservation) -> None:
         h, H, R = self._gps_model(obs)
         self._update(obs.xy - h, H, R)

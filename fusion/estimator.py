@@ -84,6 +84,7 @@ class Estimator:
             if why.startswith("bad field") or why.startswith("unsupported"):
                 self.events.append(Event(float(stamp), "fix", why))
             self.monitor.note_outage(float(stamp))
+            self._observe_outage()
             return Verdict(False, math.inf if "dead reckoning" in why else math.nan, why)
         self._observe_fix(obs)
         if self.params.initial_pose is None:
@@ -134,6 +135,9 @@ class Estimator:
                 self._relock(obs)
             self.monitor.reset()
             self._refused_since = None
+
+    def _observe_outage(self) -> None:
+        """An epoch without a measured position (filters with a GPS error model may relax it)."""
 
     def _relock(self, obs: FixObservation) -> None:
         """Move the position onto this fix with its uncertainty (heading and motion kept)."""

@@ -35,7 +35,7 @@ from scipy.stats import rankdata  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fusion  # noqa: E402
-from stream_record import load_or_record, replay  # noqa: E402
+from stream_record import add_recording_args, load_or_record, replay  # noqa: E402
 
 MONITORS = {
     "hdop": {"monitor": "hdop"},
@@ -136,10 +136,7 @@ def _share(flagged: np.ndarray, group: np.ndarray) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--world", default="charles_river")
-    parser.add_argument("--matcher", default="gicp")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default="benchmarks/out")
+    add_recording_args(parser)
     parser.add_argument("--t-start", type=float, default=0.0)
     parser.add_argument("--t-end", type=float, default=None)
     parser.add_argument("--fault-m", type=float, nargs="+", default=[5.0, 10.0])

@@ -26,7 +26,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fusion  # noqa: E402
-from stream_record import load_or_record, replay  # noqa: E402
+from stream_record import add_recording_args, load_or_record, replay  # noqa: E402
 
 NAMES = ("gps_only", "hdop_switch", "ekf", "pf")
 
@@ -91,10 +91,7 @@ def plot_errors(t: np.ndarray, error: dict, fix_t: np.ndarray, fix_error: np.nda
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--world", default="charles_river")
-    parser.add_argument("--matcher", default="gicp")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default="benchmarks/out")
+    add_recording_args(parser)
     parser.add_argument("--min-outage", type=float, default=2.0)
     parser.add_argument("--before", type=float, default=40.0)
     parser.add_argument("--after", type=float, default=30.0)

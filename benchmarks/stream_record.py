@@ -66,6 +66,14 @@ def code_digest() -> str:
     return h.hexdigest()[:10]
 
 
+def add_recording_args(parser) -> None:
+    """The command-line options that pick a recording: --world, --matcher, --seed, --out."""
+    parser.add_argument("--world", default="charles_river")
+    parser.add_argument("--matcher", default="gicp")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default="benchmarks/out")
+
+
 def load_or_record(out: Path, world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None) -> Recording:
     """The cached recording for these settings, or a fresh one written atomically (temp name, then rename)."""
     span = f"{t_start:g}-{'end' if t_end is None else f'{t_end:g}'}"

@@ -177,8 +177,7 @@ class Ekf(Estimator):
 
     def _observe_fix(self, obs: FixObservation) -> None:
         """The receiver's error variance follows its HDOP (the bias's process noise uses it)."""
-        white = self.params.gps_white_sigma_m**2
-        var = max(float(np.trace(obs.cov)) / 2.0 - white, white)
+        var = self.params.bias_variance(float(np.trace(obs.cov)) / 2.0)
         if self._correlated() and self._init and self._bias_var == 0.0:
             self.P[BIAS, BIAS] = np.eye(2) * var  # initialised before any fix: as uncertain as the receiver
         self._bias_var = var
@@ -187,8 +186,7 @@ class Ekf(Estimator):
         """Through an outage the bias's level relaxes to the receiver's error at HDOP 1, not that of the
         last fix (often a high-HDOP one at a deck's edge: HDOP 10 before charles_river's 2463 s
         outage grew the bias sd to 17 m, which then soaked up the dead-reckoning drift)."""
-        white = self.params.gps_white_sigma_m**2
-        self._bias_var = min(self._bias_var, max(self.params.uere_m**2 / 2.0 - white, white))
+        self._bias_var = min(self._bias_var, self.params.bias_variance(self.params.uere_m**2 / 2.0))
 
     def _update_fix(self, obs: FixObservation) -> None:
         h, H, R = self._gps_model(obs)

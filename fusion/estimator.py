@@ -228,12 +228,9 @@ class Estimator:
         u = expected / length
         sigma = math.sqrt(float(u @ step_cov[:2, :2] @ u))
         k = self.params.odom_slip_sigmas
-        if k > 0 and length - float(u @ step[:2]) > k * sigma:
-            out = step_cov.copy()
-            out[:2, :2] += UNOBSERVED_VAR * np.outer(u, u)
-            return out
+        slipped = k > 0 and length - float(u @ step[:2]) > k * sigma
         out = step_cov.copy()
-        out[:2, :2] += self.params.odom_slip_frac**2 * np.outer(expected, expected)
+        out[:2, :2] += UNOBSERVED_VAR * np.outer(u, u) if slipped else self.params.odom_slip_frac**2 * np.outer(expected, expected)
         return out
 
     def _body_velocity(self) -> np.ndarray | None:

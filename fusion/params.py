@@ -105,3 +105,9 @@ class MotionModelParams(EstimatorParams):
     lateral_accel_sigma: float = Field(0.05, gt=0)
     yaw_accel_sigma_deg: float = Field(3.0, gt=0)
     gps_white_sigma_m: float = Field(0.3, gt=0)
+
+    def bias_variance(self, axis_var: float) -> float:
+        """Per-axis variance of the receiver's correlated error, given its total per-axis variance
+        (the white part taken off, floored at it)."""
+        white = self.gps_white_sigma_m**2
+        return max(axis_var - white, white)

@@ -183,8 +183,7 @@ class Pf(Estimator):
 
     def _observe_fix(self, obs: FixObservation) -> None:
         """The receiver's error variance follows its HDOP (the bias's process noise uses it)."""
-        white = self.params.gps_white_sigma_m**2
-        var = max(float(np.trace(obs.cov)) / 2.0 - white, white)
+        var = self.params.bias_variance(float(np.trace(obs.cov)) / 2.0)
         if self._correlated() and self._init and self._bias_var == 0.0:
             self.bias_cov = np.eye(2) * var  # initialised before any fix: as uncertain as the receiver
         self._bias_var = var

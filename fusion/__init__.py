@@ -31,14 +31,21 @@ def available() -> list[str]:
     return list(_ESTIMATORS)
 
 
+def params_model(name: str) -> type[BaseModel]:
+    """The pydantic model of estimator `name`'s parameters (documented defaults)."""
+    if name not in _ESTIMATORS:
+        raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())})")
+    return _ESTIMATORS[name][1]
+
+
 def create(name: str, **params) -> Estimator:
     """A fresh estimator by name; unknown names, parameters and monitors raise ValueError naming them."""
     if name not in _ESTIMATORS:
         raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())})")
-    cls, model = _ESTIMATORS[name]
-    p = validate_params(model, params, f"estimator '{name}'")
+    cls = _ESTIMATORS[name][0]
+    p = validate_params(params_model(name), params, f"estimator '{name}'")
     monitor = monitors.create(p.monitor, **p.monitor_params)
     return cls(p, monitor)
 
 
-__all__ = ["Estimator", "Event", "Verdict", "available", "create", "monitors"]
+__all__ = ["Estimator", "Event", "Verdict", "available", "create", "monitors", "params_model"]

@@ -38,6 +38,13 @@ def validate_params(model: type[BaseModel], params: dict, what: str) -> BaseMode
         raise ValueError(f"{what}: parameter '{key}': {first['msg']}") from None
 
 
+def params_model(name: str) -> type[BaseModel]:
+    """The pydantic model of monitor `name`'s parameters."""
+    if name not in _MONITORS:
+        raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())})")
+    return _MONITORS[name][1]
+
+
 def create(name: str, **params) -> Monitor:
     """A fresh monitor by name; unknown names and parameters raise ValueError naming them."""
     if name not in _MONITORS:
@@ -55,4 +62,4 @@ def create(name: str, **params) -> Monitor:
     return cls(p)
 
 
-__all__ = ["FixContext", "Monitor", "available", "create", "validate_params"]
+__all__ = ["FixContext", "Monitor", "available", "create", "params_model", "validate_params"]

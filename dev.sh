@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # riverbench quick start. Each command installs what is missing, then runs:
-#   ./dev.sh demo    simulate the default world (charles_river) and write out/preview/
+#   ./dev.sh demo    run the quickstart scenario (riverbench run quickstart) and write runs/quickstart-<time>/
 #   ./dev.sh test    run the test suite (extra args go to pytest)
 # Works as root on a fresh Debian 12 (Python 3.11); elsewhere install the system packages by hand.
 set -euo pipefail
@@ -38,7 +38,7 @@ install_system
 install_python
 
 case "${1:-}" in
-    demo) shift; exec "$VENV/bin/riverbench" preview "$@" ;;
+    demo) shift; exec "$VENV/bin/riverbench" run quickstart "$@" ;;
     test) shift; exec "$PY" -m pytest -n 2 "$@" ;;
     *) echo "usage: ./dev.sh demo | test [args]" >&2; exit 2 ;;
 esac

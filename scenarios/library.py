@@ -9,7 +9,7 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from scenarios import overrides
-from scenarios.spec import Scenario
+from scenarios.spec import Scenario, default_lists
 
 LIBRARY = Path(__file__).resolve().parent / "library"
 
@@ -51,6 +51,8 @@ def read(name_or_path: str | Path) -> dict:
 def load(name_or_path: str | Path, set: list[str] | None = None, seed: int | None = None) -> Scenario:
     """A validated Scenario from a library name or a TOML path, with `--set` overrides and a seed."""
     data = read(name_or_path)
+    if set:
+        data = {**default_lists(), **data}  # so that --set can reach into the default matchers and estimators
     data = overrides.apply(data, list(set or []))
     if seed is not None:
         data["seed"] = seed

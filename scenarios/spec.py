@@ -152,12 +152,20 @@ class FastVariant(BaseModel):
         return [Expectation.parse(v).text for v in value]
 
 
+def default_lists() -> dict[str, list[dict]]:
+    """The matchers and estimators a scenario has when it names none, as they would be written in TOML."""
+    return {
+        "matchers": [{"id": "gicp", "kind": "gicp"}],
+        "estimators": [{"id": k, "kind": k} | ({} if k == "gps_only" else {"matcher": "gicp"}) for k in fusion.available()],
+    }
+
+
 def _default_matchers() -> list[MatcherSpec]:
-    return [MatcherSpec(id="gicp", kind="gicp")]
+    return [MatcherSpec(**m) for m in default_lists()["matchers"]]
 
 
 def _default_estimators() -> list[EstimatorSpec]:
-    return [EstimatorSpec(id=k, kind=k, matcher=None if k == "gps_only" else "gicp") for k in fusion.available()]
+    return [EstimatorSpec(**e) for e in default_lists()["estimators"]]
 
 
 class Scenario(BaseModel):
@@ -182,11 +190,23 @@ class Scenario(BaseModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _no_section_seeds(cls, data):
-        if isinstance(data, dict):
-            for section in SEEDED_SECTIONS:
-                if isinstance(data.get(section), dict) and "seed" in data[section]:
-                    raise ValueError(f"{section}.seed: every component takes the scenario's top-level seed; set 'seed' there")
+    def _prepare(cls, data):
+        """Reject per-section seeds; give estimators the boat's real mount and antenna unless they set their own."""
+        if not isinstance(data, dict):
+            return data
+        for section in SEEDED_SECTIONS:
+            if isinstance(data.get(section), dict) and "seed" in data[section]:
+                raise ValueError(f"{section}.seed: every component takes the scenario's top-level seed; set 'seed' there")
+        try:
+            mount = _mount_matrix(TrajectoryConfig.model_validate(data.get("vessel", {})))
+            antenna = list(GnssConfig.model_validate(data.get("gnss", {})).antenna_offset_m)
+        except (ValueError, TypeError):
+            return data  # the section's own validation names the problem
+        raw = data.get("estimators", default_lists()["estimators"])
+        if isinstance(raw, list) and all(isinstance(e, dict) for e in raw):
+            data = {**data, "estimators": [
+                {**e, "params": {"mount": mount, "antenna": antenna, **(e.get("params") or {})}} for e in raw
+            ]}
         return data
 
     @model_validator(mode="after")
@@ -210,11 +230,6 @@ class Scenario(BaseModel):
                 est.matcher = matcher_ids[0]
             elif est.matcher not in matcher_ids:
                 raise ValueError(f"estimators.{est.id}.matcher: no matcher with id {est.matcher!r} (have {', '.join(matcher_ids) or 'none'})")
-        # the boat's configuration: estimators know the real mount and antenna unless told otherwise
-        mount = _mount_matrix(self.vessel)
-        for est in self.estimators:
-            est.params.setdefault("mount", mount)
-            est.params.setdefault("antenna", list(self.gnss.antenna_offset_m))
         ids = {"estimators": set(e.id for e in self.estimators), "matchers": set(matcher_ids)}
         self.expect = [Expectation.parse(text, ids).text for text in self.expect]
         if self.fast is not None:

@@ -1,0 +1,156 @@
+"""The runner: the run directory's files against the simulator's truth, determinism across worker
+counts and re-runs of the resolved scenario, recorded failures, and nothing half-written on disk."""
+
+import csv
+import json
+import tomllib
+from functools import reduce
+
+import numpy as np
+import pytest
+
+import scenarios
+import sim
+import worlds
+from scenarios import files
+from scenarios.library import validate
+from scenarios.run import RunFailed, RunInterrupted
+
+SHORT = ["stretch.start_s=200.0", "stretch.end_s=215.0"]  # canal_lock: walls on both sides, 15 s
+
+
+def short(name="rough_water", extra=()):
+    return scenarios.load(name, set=[*SHORT, *extra])
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "short"
+    return scenarios.run(short(), out, workers=2, report=False)
+
+
+def test_run_directory_holds_every_file(short_run):
+    names = {p.name for p in short_run.out_dir.iterdir()}
+    expected = {"scenario.toml", "metrics.json", "groundtruth.tum", "gps.csv", "gps.nmea", "windows.csv", "scans.csv"}
+    expected |= {f"{e.id}.tum" for e in short_run.scenario.estimators} | {f"{m.id}.tum" for m in short_run.scenario.matchers}
+    assert expected <= names
+    assert not [p for p in short_run.out_dir.parent.iterdir() if p.name.startswith(".")]
+
+
+def test_groundtruth_is_the_trajectory_at_scan_times(short_run):
+    s = short_run.scenario
+    trajectory = sim.Trajectory(worlds.load(s.world, **s.world_params), seed=s.seed, **s.vessel.model_dump(exclude={"seed"}))
+    rows = files.read_tum(short_run.out_dir / "groundtruth.tum")
+    assert len(rows) == 150 and np.allclose(np.diff(rows[:, 0]), 0.1)
+    poses = trajectory.poses(rows[:, 0])
+    assert np.allclose(rows[:, 1:4], poses[:, :3, 3], atol=2e-6)
+    from scipy.spatial.transform import Rotation
+
+    assert np.allclose(Rotation.from_quat(rows[:, 4:]).as_matrix(), poses[:, :3, :3], atol=1e-6)
+    assert np.allclose(np.linalg.norm(rows[:, 4:], axis=1), 1.0)
+
+
+def test_metrics_match_the_files(short_run):
+    m = json.loads((short_run.out_dir / "metrics.json").read_text())
+    assert m["run"]["scans"] == 150 and m["run"]["fixes"] == 75
+    truth = files.read_tum(short_run.out_dir / "groundtruth.tum")
+    ekf = files.read_tum(short_run.out_dir / "ekf.tum")
+    common, i, j = np.intersect1d(truth[:, 0], ekf[:, 0], return_indices=True)
+    error = np.hypot(*(truth[i, 1:3] - ekf[j, 1:3]).T)
+    assert m["estimators"]["ekf"]["ape"]["max"] == pytest.approx(error.max(), abs=1e-5)
+    assert m["estimators"]["ekf"]["available"] == pytest.approx(len(common) / len(truth))
+    with open(short_run.out_dir / "gps.csv") as f:
+        rows = list(csv.DictReader(f))
+    measured = [float(r["err_h"]) for r in rows if r["quality"] == "1"]
+    assert m["gps"]["availability"] == pytest.approx(len(measured) / len(rows))
+    assert m["gps"]["error"]["max"] == pytest.approx(max(measured), abs=1e-3)
+    assert m["run"]["realtime_factor"] > 0 and m["run"]["peak_rss_mb"] > 100
+    assert [e["expect"] for e in m["expectations"]] == short_run.scenario.expect
+
+
+def test_nmea_log_has_valid_checksums(short_run):
+    lines = (short_run.out_dir / "gps.nmea").read_bytes().split(b"\r\n")
+    sentences = [line.decode() for line in lines if line]
+    assert sum(s.startswith("$GPGGA") for s in sentences) == 75
+    for s in sentences:
+        body, checksum = s[1:].split("*")
+        assert int(checksum, 16) == reduce(lambda a, c: a ^ ord(c), body, 0)
+
+
+def test_same_scenario_same_outputs_with_one_or_two_processes_and_from_the_resolved_file(short_run, tmp_path):
+    resolved = validate(tomllib.loads((short_run.out_dir / "scenario.toml").read_text()))
+    assert resolved.hash == short_run.scenario.hash
+    again = scenarios.run(resolved, tmp_path / "again", workers=1, report=False)
+    for name in ["groundtruth.tum", "ekf.tum", "pf.tum", "gicp.tum", "gps.csv", "gps.nmea", "windows.csv"]:
+        assert (again.out_dir / name).read_bytes() == (short_run.out_dir / name).read_bytes(), name
+
+
+def test_a_matcher_that_raises_fails_from_that_scan_on_and_the_run_goes_on(tmp_path, monkeypatch):
+    from scenarios import matcher_pool
+
+    real_create = matcher_pool.matchers_pkg.create
+
+    class Exploding:
+        def __init__(self, inner):
+            self.inner, self.calls = inner, 0
+
+        def register(self, scan):
+            self.calls += 1
+            if self.calls == 40:
+                raise RuntimeError("boom")
+            return self.inner.register(scan)
+
+    monkeypatch.setattr(matcher_pool.matchers_pkg, "create", lambda kind, **p: Exploding(real_create(kind, **p)))
+    result = scenarios.run(short(), tmp_path / "run", workers=1, report=False)
+    failures = result.metrics["run"]["failures"]
+    assert failures[0]["component"] == "matcher" and "boom" in failures[0]["reason"]
+    gicp = result.metrics["matchers"]["gicp"]
+    assert gicp["failed"] and gicp["failed_at"] == pytest.approx(200.0 + 39 * 0.1)
+    with open(result.out_dir / "scans.csv") as f:
+        ok = [int(r["gicp.ok"]) for r in csv.DictReader(f)]
+    assert sum(ok[1:39]) > 30 and sum(ok[39:]) == 0
+    assert result.metrics["estimators"]["ekf"]["available"] > 0.5  # the estimators went on
+
+
+def test_an_estimator_that_raises_is_recorded_and_the_others_go_on(tmp_path, monkeypatch):
+    from fusion.pf import Pf
+
+    def broken(self, stamp, match):
+        raise FloatingPointError("pf exploded")
+
+    monkeypatch.setattr(Pf, "add_match", broken)
+    result = scenarios.run(short(), tmp_path / "run", workers=1, report=False)
+    assert result.metrics["estimators"]["pf"]["failed"]
+    assert result.metrics["estimators"]["ekf"]["available"] > 0.5 and not result.metrics["estimators"]["ekf"]["failed"]
+
+
+def test_a_simulation_failure_names_the_scan_and_leaves_nothing(tmp_path, monkeypatch):
+    real_scan = sim.HDL32E.scan
+
+    def failing(self, world, trajectory, t0):
+        if t0 > 201.0:
+            raise ValueError("lidar: trajectory gave a NaN pose")
+        return real_scan(self, world, trajectory, t0)
+
+    monkeypatch.setattr(sim.HDL32E, "scan", failing)
+    with pytest.raises(RunFailed, match=r"scan \d+ at t=201\.\d+ s: lidar: trajectory gave a NaN pose"):
+        scenarios.run(short(), tmp_path / "run", workers=2, report=False)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_stops_cleanly_and_leaves_nothing(tmp_path):
+    def interrupt(t, t0, t1, scans):
+        if scans == 20:
+            raise KeyboardInterrupt
+
+    with pytest.raises(RunInterrupted, match="nothing written"):
+        scenarios.run(short(), tmp_path / "run", workers=2, report=False, progress=interrupt)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_refuses_a_non_empty_output_directory(tmp_path):
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "keep.txt").write_text("mine")
+    with pytest.raises(ValueError, match="not empty"):
+        scenarios.run(short(), tmp_path / "run", report=False)
+    assert (tmp_path / "run" / "keep.txt").read_text() == "mine"

@@ -108,12 +108,13 @@ class Recorder:
     def _chain(self, mid: str, stamp: float, truth: np.ndarray, r: MatchResult) -> np.ndarray:
         """World<-base_link of this scan from the matcher's odometry. A scan that passed the gate becomes
         the reference (a failed match holds the reference's pose: that motion is lost); a gated scan
-        holds the latest reference's pose and is not a reference."""
+        holds the latest reference's pose and is not a reference (before the first reference: no
+        odometry yet, NaN; the matcher's first reference is its first scan that passes the gate)."""
         known = self._lidar_at[mid]
+        if r.info.get("gated", False):
+            return nan_pose() if self._latest_ref[mid] is None else self._latest_ref[mid] @ self.mount_inv
         if self._latest_ref[mid] is None:
             lidar = truth @ self.mount  # the start pose: odometry is chained from the truth here
-        elif r.info.get("gated", False):
-            return self._latest_ref[mid] @ self.mount_inv
         else:
             ref = known.get(r.info.get("ref_stamp"), self._latest_ref[mid])
             lidar = ref @ np.asarray(r.T, dtype=float) if r.ok else ref

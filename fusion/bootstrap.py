@@ -20,10 +20,23 @@ class Alignment:
     cov: np.ndarray
 
 
+@dataclass(frozen=True)
+class _Sample:
+    """One kept fix: its stamp, position, per-axis variance, and the odometry pose at it (with the
+    antenna lever applied) on odometry chain `segment` (None without odometry)."""
+
+    stamp: float
+    xy: np.ndarray
+    var: float
+    antenna_odo: np.ndarray | None
+    segment: int | None
+
+
 class Bootstrap:
-    """Collects fixes until they span `baseline_m`, then fits rotation+translation of the odometry
-    track onto them (2-D Procrustes). Without odometry spanning the travel, the heading is the GPS course (the boat moving forward).
-    Only the last `window_s` of fixes are kept."""
+    """Collects fixes; `alignment(stamp)` fits rotation+translation of the odometry track onto them
+    (2-D Procrustes) once they span `baseline_m`. Without odometry spanning the travel, the heading
+    is the GPS course (the boat moving forward). Only the last `window_s` of fixes are kept; the fit
+    is computed only when asked for (start-up, re-lock), not on every fix."""
 
     def __init__(self, baseline_m: float, min_fixes: int, max_hdop: float, lever: np.ndarray,
                  max_yaw_sd_deg: float = 5.0, window_s: float = 120.0) -> None:
@@ -33,55 +46,63 @@ class Bootstrap:
         self.min_fixes = min_fixes
         self.max_hdop = max_hdop
         self.lever = lever
-        self._fixes: list[tuple[FixObservation, np.ndarray | None, int | None]] = []  # fix, odometry pose, segment
+        self._samples: list[_Sample] = []
+        self._odo_at_last: np.ndarray | None = None  # odometry pose (x, y, yaw) at the latest kept fix
 
-    def add(self, obs: FixObservation, odometry: OdometryTrack) -> Alignment | None:
-        """Take one fix; return the alignment once there is enough travel for a heading within
-        max_yaw_sd_deg (judged from the fit's own residuals, so noisy fixes need more travel)."""
+    def add(self, obs: FixObservation, odometry: OdometryTrack) -> None:
+        """Keep one fix (fixes above max_hdop are not kept)."""
         if obs.hdop > self.max_hdop:
+            return
+        odo = odometry.pose_at(obs.stamp) if odometry.velocity() is not None else None
+        segment = odometry.segment if odo is not None else None
+        if segment is not None:  # fixes seen on an earlier (broken) chain no longer link to this one
+            self._samples = [f if f.segment in (None, segment) else _Sample(f.stamp, f.xy, f.var, None, None) for f in self._samples]
+        antenna = None if odo is None else odo[:2] + rot2(odo[2]) @ self.lever
+        self._samples.append(_Sample(obs.stamp, np.asarray(obs.xy, dtype=float), float(np.trace(obs.cov)) / 2.0, antenna, segment))
+        self._odo_at_last = odo
+        cut = 0
+        while self._samples[cut].stamp < obs.stamp - self.window_s:
+            cut += 1
+        del self._samples[:cut]
+
+    def alignment(self, stamp: float) -> Alignment | None:
+        """The alignment at the latest kept fix if it is at `stamp` and there is enough travel for a
+        heading within max_yaw_sd_deg (judged from the fit's own residuals, so noisy fixes need more travel)."""
+        if not self._samples or self._samples[-1].stamp != stamp:
             return None
-        alignment = self._add(obs, odometry)
+        alignment = self._fit()
         if alignment is None or alignment.cov[2, 2] > self.max_yaw_var:
             return None
         return alignment
 
-    def _add(self, obs: FixObservation, odometry: OdometryTrack) -> Alignment | None:
-        odo = odometry.pose_at(obs.stamp) if odometry.velocity() is not None else None
-        segment = odometry.segment if odo is not None else None
-        if segment is not None:  # fixes seen on an earlier (broken) chain no longer link to this one
-            self._fixes = [f if f[2] in (None, segment) else (f[0], None, None) for f in self._fixes]
-        self._fixes.append((obs, odo, segment))
-        self._fixes = [f for f in self._fixes if f[0].stamp >= obs.stamp - self.window_s]
-        gps = np.array([f[0].xy for f in self._fixes])
-        if len(self._fixes) < self.min_fixes or np.linalg.norm(gps[-1] - gps[0]) < self.baseline_m:
+    def _fit(self) -> Alignment | None:
+        gps = np.array([f.xy for f in self._samples])
+        if len(self._samples) < self.min_fixes or np.linalg.norm(gps[-1] - gps[0]) < self.baseline_m:
             return None
-        with_odo = [(f[0], f[1]) for f in self._fixes if f[1] is not None]
-        sigma2 = float(np.mean([np.trace(f[0].cov) / 2.0 for f in self._fixes]))
+        with_odo = [f for f in self._samples if f.antenna_odo is not None]
+        sigma2 = float(np.mean([f.var for f in self._samples]))
         if len(with_odo) >= self.min_fixes:
-            g = np.array([o.xy for o, _ in with_odo])
-            q = np.array([p[:2] for _, p in with_odo])
+            g = np.array([f.xy for f in with_odo])
+            q = np.array([f.antenna_odo for f in with_odo])
             if np.linalg.norm(g[-1] - g[0]) < self.baseline_m:
                 return None  # the odometry chain restarted recently: wait for it to span the baseline
             if np.linalg.norm(q[-1] - q[0]) >= 0.5 * self.baseline_m:
-                return self._procrustes(with_odo, sigma2)
+                # the fit places the latest fix's odometry pose; a latest fix without odometry has none to place
+                return self._procrustes(g, q, sigma2) if self._odo_at_last is not None else None
         return self._course(gps, sigma2)
 
-    def _procrustes(self, pairs: list[tuple[FixObservation, np.ndarray]], sigma2: float) -> Alignment:
-        g = np.array([o.xy for o, _ in pairs])
-        q = np.array([p[:2] + rot2(p[2]) @ self.lever for _, p in pairs])
+    def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float) -> Alignment:
         gc, qc = g - g.mean(0), q - q.mean(0)
         h = qc.T @ gc
         theta = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
         t = g.mean(0) - rot2(theta) @ q.mean(0)
-        last_obs, last_odo = pairs[-1]
-        world = compose(np.array([t[0], t[1], theta]), last_odo)
+        world = compose(np.array([t[0], t[1], theta]), self._odo_at_last)
         spread = float(np.sum(qc**2))
         residual = g - (q @ rot2(theta).T + t)
         sigma2 = max(sigma2, float(np.sum(residual**2)) / max(2 * (len(g) - 2), 1))  # per axis
         yaw_var = sigma2 / max(spread, 1e-9)
         cov = np.diag([sigma2, sigma2, yaw_var])
-        return Alignment(last_obs.stamp, world, cov)
-
+        return Alignment(self._samples[-1].stamp, world, cov)
     def _course(self, gps: np.ndarray, sigma2: float) -> Alignment:
         """Heading from the GPS course over the most recent travel long enough for the heading
         threshold (a shorter chord follows a turning boat better)."""
@@ -100,4 +121,4 @@ class Bootstrap:
         yaw = float(wrap(np.arctan2(d[1], d[0])))
         xy = gps[-1] - rot2(yaw) @ self.lever
         yaw_var = 2.0 * sigma2 / max(float(d @ d), 1e-9)
-        return Alignment(self._fixes[-1][0].stamp, np.array([xy[0], xy[1], yaw]), np.diag([sigma2, sigma2, yaw_var]))
+        return Alignment(self._samples[-1].stamp, np.array([xy[0], xy[1], yaw]), np.diag([sigma2, sigma2, yaw_var]))

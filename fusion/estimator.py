@@ -41,7 +41,6 @@ class Estimator:
         self.odometry = OdometryTrack()
         self._bootstrap = Bootstrap(params.init_baseline_m, params.init_min_fixes, params.init_max_hdop, self.lever,
                                     params.init_max_yaw_sd_deg)
-        self._alignment: Alignment | None = None  # the latest start-up style alignment, for a re-lock
         self._height = 0.0
         self._height_var = math.inf
         sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)
@@ -88,7 +87,7 @@ class Estimator:
             return Verdict(False, math.inf if "dead reckoning" in why else math.nan, why)
         self._observe_fix(obs)
         if self.params.initial_pose is None:
-            self._alignment = self._bootstrap.add(obs, self.odometry)
+            self._bootstrap.add(obs, self.odometry)
         if not self.initialized:
             self._try_initialise(obs)
         ctx = self._context(obs)
@@ -126,11 +125,11 @@ class Estimator:
         if self._refused_since is None:
             self._refused_since = obs.stamp
         elif obs.stamp - self._refused_since >= self.params.relock_s:
-            fresh = self._alignment is not None and self._alignment.stamp == obs.stamp
-            how = "re-aligned pose and heading" if fresh else "moved the position"
+            fresh = self._bootstrap.alignment(obs.stamp) if self.params.initial_pose is None else None
+            how = "re-aligned pose and heading" if fresh is not None else "moved the position"
             self.events.append(Event(obs.stamp, "fix", f"re-locked onto GPS after {obs.stamp - self._refused_since:.0f} s of refused fixes: {how}"))
-            if fresh:
-                self._initialise(self._alignment)
+            if fresh is not None:
+                self._initialise(fresh)
             else:
                 self._relock(obs)
             self.monitor.reset()
@@ -267,8 +266,9 @@ class Estimator:
         if self.params.initial_pose is not None:
             self._initialise_from_params(obs.stamp)
             return
-        if self._alignment is not None and self._alignment.stamp == obs.stamp:
-            self._initialise(self._alignment)
+        alignment = self._bootstrap.alignment(obs.stamp)
+        if alignment is not None:
+            self._initialise(alignment)
 
     def _initialise_from_params(self, stamp: float) -> None:
         (x, y, yaw_deg), (sigma_m, sigma_deg) = self.params.initial_pose, self.params.initial_sigma

@@ -23,8 +23,8 @@ def load(name_or_path, set: list[str] | None = None, seed: int | None = None):
 
 
 def run(scenario, out_dir=None, **options):
-    """Run a Scenario and write its run directory (see scenarios.run.run)."""
-    from scenarios.run import run as run_scenario
+    """Run a Scenario and write its run directory (see scenarios.runner.run)."""
+    from scenarios.runner import run as run_scenario
 
     return run_scenario(scenario, out_dir, **options)
 

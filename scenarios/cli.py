@@ -110,7 +110,7 @@ def run(
     """Run a scenario: write its run directory, print a summary; exit 1 when an expectation fails."""
     import scenarios
     from scenarios.progress import RunProgress
-    from scenarios.run import RunFailed, RunInterrupted
+    from scenarios.runner import RunFailed, RunInterrupted
     from scenarios.summary import run_table
 
     with user_errors():

@@ -42,7 +42,7 @@ def _run_case(index: int, source: str, fast: bool, out_dir: str, workers: int, r
     start = time.perf_counter()
     try:
         from scenarios.library import load
-        from scenarios.run import run
+        from scenarios.runner import run
 
         scenario = load(source)
         if fast:

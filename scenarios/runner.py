@@ -1,4 +1,4 @@
-"""`scenarios.run(scenario, out_dir)`: stream a scenario through the matchers and estimators under
+"""`scenarios.run(scenario, out_dir)` (scenarios.runner.run): stream a scenario through the matchers and estimators under
 test, score them against the exact truth and write the run directory.
 
 Streaming: each revolution is simulated, handed to the matchers (in worker processes, so the next

@@ -112,7 +112,8 @@ def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window]) -> di
 
 def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray) -> dict:
     """Per kind: count, total seconds, and the worst max error, exit error, added error and recovery
-    time over its windows; `recovered` is the share of windows after which the error came back."""
+    time over its windows; `recovered` is the share of windows after which the error came back
+    (recover_s is the worst over those that did)."""
     out = {}
     for kind in win.KINDS:
         mine = [w for w in windows if w.kind == kind]
@@ -171,6 +172,9 @@ def recall_at(statistic: np.ndarray, faulty: np.ndarray, max_fa: float) -> float
 
 
 def matcher_metrics(rec: RunRecord, mid: str) -> dict:
+    """success: share of scans after the first whose match is usable (gated scans count as not);
+    gated: share of all scans the point-count gate dropped; degenerate: share of usable matches
+    with an unobserved direction; hz and ms from the wall time per registered scan."""
     m = rec.matches[mid]
     attempts = np.arange(len(m.ok)) > 0  # the first scan has nothing to match against
     seconds = m.seconds[attempts] if attempts.any() else m.seconds

@@ -139,8 +139,9 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
 
     def process_fix(fix, nmea) -> None:
         verdicts = feed_estimators(lambda eid, est: est.add_fix(fix), fix.stamp)
-        recorder.fix(fix, {eid: (v.trusted, v.statistic) if eid in verdicts else (False, math.nan)
-                           for eid, v in ((eid, verdicts.get(eid)) for eid in estimators)})
+        # a failed estimator raises no alarm: its fixes count as trusted with no statistic
+        recorder.fix(fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan)
+                           for eid in estimators})
         nmea.write("\r\n".join(fix.nmea()) + "\r\n")
 
     def drain(pool, nmea, keep_scans: int) -> None:

@@ -48,7 +48,8 @@ class Stretch(BaseModel):
         by_time = self.start_s is not None or self.end_s is not None
         by_station = self.start_m is not None or self.end_m is not None
         if by_time and by_station:
-            raise ValueError("give the stretch by time (start_s, end_s) or by station (start_m, end_m), not both")
+            raise ValueError("give the stretch by time (start_s, end_s) or by station (start_m, end_m), not both "
+                             "(--set replaces it whole with stretch={start_s = 10.0, end_s = 60.0})")
         for a, b in ((self.start_s, self.end_s), (self.start_m, self.end_m)):
             if a is not None and b is not None and not b > a:
                 raise ValueError(f"the stretch must end after it starts (got {a} .. {b})")

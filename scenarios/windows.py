@@ -16,7 +16,7 @@ from scenarios.record import FixTable
 
 KINDS = ("blackout", "nlos", "reacquisition", "injected")
 NLOS_MERGE_S = 1.0
-"""NLOS stretches closer than this are one window."""
+"""NLOS stretches at most this far apart are one window."""
 REACQUIRED_M = 1.0
 """Re-acquisition ends at the first measured fix whose environment-added error is below this."""
 REACQUISITION_MAX_S = 120.0
@@ -69,8 +69,9 @@ def _runs(t: np.ndarray, flag: np.ndarray, period_s: float, merge_s: float) -> l
 
 @dataclass(frozen=True)
 class Passage:
-    """One estimate through one window: the largest error inside, at entry and exit, what the window
-    added (exit - entry) and the time after the window until the error is back within
+    """One estimate through one window: the largest error inside it or at its exit (the first scan
+    at or after its end), at entry (the last scan before it) and exit, what the window added
+    (exit - entry) and the time after the window until the error is back within
     RECOVERED_MARGIN_M of its entry value (NaN: not within the run)."""
 
     max_error: float

@@ -14,9 +14,9 @@ import sim
 import worlds
 from scenarios import files
 from scenarios.library import validate
-from scenarios.run import RunFailed, RunInterrupted
+from scenarios.runner import RunFailed, RunInterrupted
 
-SHORT = ["stretch.start_s=200.0", "stretch.end_s=215.0"]  # canal_lock: walls on both sides, 15 s
+SHORT = ["stretch={start_s = 60.0, end_s = 90.0}"]  # canal_lock: walls on both sides, 30 s
 
 
 def short(name="rough_water", extra=()):
@@ -41,7 +41,7 @@ def test_groundtruth_is_the_trajectory_at_scan_times(short_run):
     s = short_run.scenario
     trajectory = sim.Trajectory(worlds.load(s.world, **s.world_params), seed=s.seed, **s.vessel.model_dump(exclude={"seed"}))
     rows = files.read_tum(short_run.out_dir / "groundtruth.tum")
-    assert len(rows) == 150 and np.allclose(np.diff(rows[:, 0]), 0.1)
+    assert len(rows) == 300 and np.allclose(np.diff(rows[:, 0]), 0.1)
     poses = trajectory.poses(rows[:, 0])
     assert np.allclose(rows[:, 1:4], poses[:, :3, 3], atol=2e-6)
     from scipy.spatial.transform import Rotation
@@ -52,7 +52,7 @@ def test_groundtruth_is_the_trajectory_at_scan_times(short_run):
 
 def test_metrics_match_the_files(short_run):
     m = json.loads((short_run.out_dir / "metrics.json").read_text())
-    assert m["run"]["scans"] == 150 and m["run"]["fixes"] == 75
+    assert m["run"]["scans"] == 300 and m["run"]["fixes"] == 150
     truth = files.read_tum(short_run.out_dir / "groundtruth.tum")
     ekf = files.read_tum(short_run.out_dir / "ekf.tum")
     common, i, j = np.intersect1d(truth[:, 0], ekf[:, 0], return_indices=True)
@@ -71,7 +71,7 @@ def test_metrics_match_the_files(short_run):
 def test_nmea_log_has_valid_checksums(short_run):
     lines = (short_run.out_dir / "gps.nmea").read_bytes().split(b"\r\n")
     sentences = [line.decode() for line in lines if line]
-    assert sum(s.startswith("$GPGGA") for s in sentences) == 75
+    assert sum(s.startswith("$GPGGA") for s in sentences) == 150
     for s in sentences:
         body, checksum = s[1:].split("*")
         assert int(checksum, 16) == reduce(lambda a, c: a ^ ord(c), body, 0)
@@ -105,11 +105,12 @@ def test_a_matcher_that_raises_fails_from_that_scan_on_and_the_run_goes_on(tmp_p
     failures = result.metrics["run"]["failures"]
     assert failures[0]["component"] == "matcher" and "boom" in failures[0]["reason"]
     gicp = result.metrics["matchers"]["gicp"]
-    assert gicp["failed"] and gicp["failed_at"] == pytest.approx(200.0 + 39 * 0.1)
+    assert gicp["failed"] and gicp["failed_at"] == pytest.approx(60.0 + 39 * 0.1)
     with open(result.out_dir / "scans.csv") as f:
         ok = [int(r["gicp.ok"]) for r in csv.DictReader(f)]
     assert sum(ok[1:39]) > 30 and sum(ok[39:]) == 0
-    assert result.metrics["estimators"]["ekf"]["available"] > 0.5  # the estimators went on
+    estimators = result.metrics["estimators"]  # the estimators went on, without odometry from scan 40
+    assert not any(e["failed"] for e in estimators.values()) and estimators["gps_only"]["available"] > 0.3
 
 
 def test_an_estimator_that_raises_is_recorded_and_the_others_go_on(tmp_path, monkeypatch):
@@ -121,19 +122,19 @@ def test_an_estimator_that_raises_is_recorded_and_the_others_go_on(tmp_path, mon
     monkeypatch.setattr(Pf, "add_match", broken)
     result = scenarios.run(short(), tmp_path / "run", workers=1, report=False)
     assert result.metrics["estimators"]["pf"]["failed"]
-    assert result.metrics["estimators"]["ekf"]["available"] > 0.5 and not result.metrics["estimators"]["ekf"]["failed"]
+    assert result.metrics["estimators"]["ekf"]["available"] > 0.3 and not result.metrics["estimators"]["ekf"]["failed"]
 
 
 def test_a_simulation_failure_names_the_scan_and_leaves_nothing(tmp_path, monkeypatch):
     real_scan = sim.HDL32E.scan
 
     def failing(self, world, trajectory, t0):
-        if t0 > 201.0:
+        if t0 > 61.0:
             raise ValueError("lidar: trajectory gave a NaN pose")
         return real_scan(self, world, trajectory, t0)
 
     monkeypatch.setattr(sim.HDL32E, "scan", failing)
-    with pytest.raises(RunFailed, match=r"scan \d+ at t=201\.\d+ s: lidar: trajectory gave a NaN pose"):
+    with pytest.raises(RunFailed, match=r"scan \d+ at t=61\.\d+ s: lidar: trajectory gave a NaN pose"):
         scenarios.run(short(), tmp_path / "run", workers=2, report=False)
     assert list(tmp_path.iterdir()) == []
 

@@ -218,3 +218,7 @@ def schema() -> None:
     from scenarios.spec import Scenario
 
     print(json.dumps(Scenario.model_json_schema(), indent=2))
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,74 @@
+"""The regression suite: the library's fast variants pass through `riverbench suite` (JUnit written),
+and the expectations are not loose: each scenario fails when what it tests is taken away."""
+
+import re
+import xml.etree.ElementTree as ET
+
+import pytest
+from typer.testing import CliRunner
+
+import scenarios
+from scenarios.cli import app
+from scenarios.library import validate
+
+runner = CliRunner()
+ESTIMATOR_IN = re.compile(r"^estimators\.([A-Za-z_0-9]+)\.")
+
+
+def test_fast_suite_of_the_library_passes_and_writes_junit(tmp_path):
+    junit = tmp_path / "suite.xml"
+    result = runner.invoke(app, ["suite", "--fast", "--workers", "2", "--junit", str(junit), "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    names = scenarios.available()
+    suite = ET.parse(junit).getroot()
+    expected = len(names) + sum(len(scenarios.load(n).fast_variant().expect) for n in names)
+    assert int(suite.get("tests")) == expected and suite.get("failures") == "0" and suite.get("errors") == "0"
+    for name in names:
+        assert (tmp_path / "runs" / name / "report.html").is_file()
+    assert (tmp_path / "runs" / "suite.json").is_file()
+
+
+def test_suite_reports_a_failing_and_a_broken_scenario_and_exits_1(tmp_path):
+    failing = tmp_path / "failing.toml"
+    failing.write_text('world = "open_river"\nstretch = {start_s = 0.0, end_s = 20.0}\nexpect = ["gps.availability < 0.5"]\n'
+                       'matchers = [{id = "bev", kind = "bev3dof"}]\nestimators = [{id = "gps", kind = "gps_only"}]\n')
+    broken = tmp_path / "broken.toml"
+    broken.write_text('world = "open_river"\nstretch = {start_s = 5000.0, end_s = 5010.0}\n')
+    junit = tmp_path / "j.xml"
+    result = runner.invoke(app, ["suite", str(failing), str(broken), "--junit", str(junit), "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 1
+    assert "0 passed, 2 failed" in result.output
+    root = ET.parse(junit).getroot()
+    assert root.get("failures") == "1" and root.get("errors") == "1"
+    assert "stretch" in root.find(".//error").get("message")
+
+
+def _without(name: str, what: str):
+    """The scenario's fast variant with its estimators under test turned into gps_only, or its matchers made to fail."""
+    s = scenarios.load(name).fast_variant()
+    data = s.resolved()
+    if what == "estimator":
+        tested = {m.group(1) for e in s.expect if (m := ESTIMATOR_IN.match(e))}
+        for est in data["estimators"]:
+            if est["id"] in tested:
+                est.update(kind="gps_only", monitor_params={}, params={k: est["params"][k] for k in ("mount", "antenna")})
+                est.pop("monitor")
+                est.pop("matcher", None)
+    else:
+        for m in data["matchers"]:
+            m["params"]["gate_min_points"] = 10**9
+    return validate(data)
+
+
+@pytest.mark.parametrize("name", scenarios.available())
+def test_expectations_fail_without_what_the_scenario_tests(name, tmp_path):
+    s = scenarios.load(name).fast_variant()
+    tests_estimators = any(ESTIMATOR_IN.match(e) for e in s.expect)
+    if name == "open_river":  # the control: nothing to fuse; its expectations fail once GPS degrades
+        data = s.resolved()
+        data["gnss"]["forced_outages"] = [{"start_s": 20.0, "end_s": 60.0}]
+        variant = validate(data)
+    else:
+        variant = _without(name, "estimator" if tests_estimators else "matcher")
+    result = scenarios.run(variant, tmp_path / "run", workers=2, report=False)
+    assert not result.passed, f"{name}: every expectation still passes without what it tests"

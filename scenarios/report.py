@@ -30,7 +30,7 @@ p.meta { color: #555; margin: .2em 0; }
 table { border-collapse: collapse; font-size: 13px; margin: .6em 0; }
 th, td { border: 1px solid #c8c8c8; padding: 3px 8px; text-align: right; white-space: nowrap; }
 th { background: #f1f3f5; }
-th:first-child, td:first-child, td.text { text-align: left; white-space: normal; }
+th:first-child, td:first-child, th.text, td.text { text-align: left; white-space: normal; }
 td.pass, p.pass { color: #176b2c; background: #e6f4ea; font-weight: 600; }
 td.fail, p.fail { color: #b3261e; background: #fce8e6; font-weight: 600; }
 p.pass, p.fail { display: inline-block; padding: 4px 10px; border-radius: 4px; }
@@ -51,6 +51,8 @@ class Cell:
 
 @dataclass(frozen=True)
 class Table:
+    """A table: header, rows of cells, a note printed below it."""
+
     header: list[str]
     rows: list[list[Cell]]
     note: str = ""
@@ -58,6 +60,8 @@ class Table:
 
 @dataclass(frozen=True)
 class Heading:
+    """A section heading (level 1 is the title)."""
+
     level: int
     text: str
 
@@ -72,6 +76,8 @@ class Text:
 
 @dataclass(frozen=True)
 class Image:
+    """A figure: its path relative to the run directory, and its caption."""
+
     path: str
     caption: str
 
@@ -84,6 +90,7 @@ class Column:
     value: Callable[[dict], float | None]
     fmt: Callable[[float | None], str]
     better: str | None = "low"  # "low", "high", or None (not ranked)
+    text: bool = False  # words, not numbers: left-aligned
 
 
 @dataclass(frozen=True)
@@ -94,7 +101,7 @@ class Context:
     info: dict
     images: dict[str, str]
     t0: float
-    windows: dict[str, object]
+    windows: dict
 
 
 def write(run_dir: Path, scenario=None) -> None:
@@ -106,10 +113,10 @@ def write(run_dir: Path, scenario=None) -> None:
     images = plots.write_all(series, run_dir / "plots")
     ctx = Context(metrics, info, images, series.t0, plots.read_csv(run_dir / "windows.csv"))
     blocks = build(ctx)
-    with atomic_path(run_dir / "report.md") as tmp:
-        tmp.write_text(to_markdown(blocks))
-    with atomic_path(run_dir / "report.html") as tmp:
-        tmp.write_text(to_html(blocks, run_dir, title=f"riverbench: {name_of(ctx)}"))
+    for name, text in (("report.md", to_markdown(blocks)), ("report.html", to_html(blocks, run_dir, title=f"riverbench: {name_of(ctx)}"))):
+        with atomic_path(run_dir / name) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+            tmp.chmod(plots.FILE_MODE)
 
 
 def scenario_info(run_dir: Path, scenario) -> dict:
@@ -127,6 +134,7 @@ def hdop_limits(info: dict) -> dict[str, float]:
 
 
 def name_of(ctx: Context) -> str:
+    """The scenario's name (from the scenario, else from metrics.json)."""
     return ctx.info.get("name") or ctx.metrics.get("run", {}).get("scenario", "run")
 
 
@@ -140,16 +148,19 @@ def num(value, fmt: str = ".2f", unit: str = "") -> str:
 
 
 def metres(value) -> str:
+    """A distance in metres (or degrees) with two decimals."""
     return num(value, ".2f")
 
 
 def share(value) -> str:
+    """A share (0..1) as a percentage."""
     return NULL if value is None or value != value else f"{100 * value:.1f} %"
 
 
 def get(path: str) -> Callable[[dict], float | None]:
     """A getter of a dotted path in a metrics node (None when absent)."""
     def value(node: dict):
+        """The value at the path, or None."""
         for key in path.split("."):
             node = node.get(key) if isinstance(node, dict) else None
         return node
@@ -178,7 +189,7 @@ def header(ctx: Context) -> list:
     blocks.append(Text(f"{num(run.get('sim_s'), '.0f')} s simulated in {num(run.get('wall_s'), '.1f')} s "
                        f"({num(run.get('realtime_factor'), '.1f')}× real time) · {run.get('scans', NULL)} scans · "
                        f"{run.get('fixes', NULL)} GPS fixes · peak memory {num(run.get('peak_rss_mb'), '.0f')} MB · "
-                       f"{run.get('workers', NULL)} worker process(es)", "meta"))
+                       f"{run.get('workers', NULL)} worker process{'' if run.get('workers') == 1 else 'es'}", "meta"))
     outcomes = ctx.metrics.get("expectations", [])
     passed = sum(bool(o.get("pass")) for o in outcomes)
     if outcomes:
@@ -189,9 +200,11 @@ def header(ctx: Context) -> list:
 def stretch_text(stretch: dict) -> str:
     """The stretch as the scenario gives it: by route station or by time."""
     if "start_m" in stretch or "end_m" in stretch:
-        return f"{num(stretch.get('start_m', 0.0), '.0f')}–{num(stretch.get('end_m'), '.0f')} m along the route"
+        end = f"{stretch['end_m']:.0f} m" if "end_m" in stretch else "the route's end"
+        return f"{stretch.get('start_m', 0.0):.0f} m to {end} along the route"
     if "start_s" in stretch or "end_s" in stretch:
-        return f"{num(stretch.get('start_s', 0.0), '.1f')}–{num(stretch.get('end_s'), '.1f')} s of the trajectory"
+        end = f"{stretch['end_s']:.1f} s" if "end_s" in stretch else "its end"
+        return f"{stretch.get('start_s', 0.0):.1f} s to {end} of the trajectory"
     return "the whole route"
 
 
@@ -213,7 +226,7 @@ def expectations(ctx: Context) -> list:
     return [Heading(2, "Expectations"), Table(["expectation", "value", "result", "reason"], rows)]
 
 
-ESTIMATOR_COLUMNS = [
+ACCURACY_COLUMNS = [
     Column("available", get("available"), share, "high"),
     Column("APE rmse", get("ape.rmse"), metres),
     Column("APE median", get("ape.median"), metres),
@@ -222,33 +235,38 @@ ESTIMATOR_COLUMNS = [
     Column("RPE 10 m", get("rpe_10m.mean"), metres),
     Column("RPE 100 m", get("rpe_100m.mean"), metres),
     Column("yaw p95 (°)", get("yaw.p95"), metres),
+]
+DEGRADATION_COLUMNS = [
     Column("blackout max", get("windows.blackout.max_error"), metres),
     Column("blackout exit", get("windows.blackout.exit_error"), metres),
-    Column("reacq. max", get("windows.reacquisition.max_error"), metres),
+    Column("reacquisition max", get("windows.reacquisition.max_error"), metres),
     Column("NLOS max", get("windows.nlos.max_error"), metres),
     Column("injected max", get("windows.injected.max_error"), metres),
-    Column("monitor recall", get("monitor.added_5m.recall"), share, "high"),
+    Column("monitor", get("monitor_kind"), lambda v: NULL if v is None else str(v), None, text=True),
+    Column("recall", get("monitor.added_5m.recall"), share, "high"),
     Column("false alarms", get("monitor.added_5m.false_alarm_rate"), share),
 ]
-MONITOR_COLUMNS = ("monitor recall", "false alarms")
 
 
 def estimators(ctx: Context) -> list:
-    """One row per estimator: accuracy, drift, heading, each window kind's worst error, monitor scores."""
+    """Two tables, a row per estimator: accuracy over the run; worst errors through GPS degradation and monitor scores."""
     nodes = ctx.metrics.get("estimators", {})
     if not nodes:
         return []
     monitors = {e["id"]: e.get("monitor", "none") for e in ctx.info.get("estimators", []) if "id" in e}
-    # monitor scores of no monitor mean nothing; a column of a window kind the run never met would be all '–'
-    nodes = {eid: _without_monitor(n) if monitors.get(eid) == "none" else n for eid, n in nodes.items()}
-    columns = [c for c in ESTIMATOR_COLUMNS if any(c.value(n) is not None for n in nodes.values())]
-    table = ranked_table("estimator", nodes, columns, labels={eid: _failed_label(eid, n) for eid, n in nodes.items()})
-    named = ", ".join(f"{eid}: {m}" for eid, m in monitors.items())
-    note = ("Errors are horizontal, in metres, over the scans with an estimate (available). RPE: mean error per 10 m "
-            "and per 100 m of true travel. Window columns: the worst error inside any window of that kind (exit: at its end). "
-            "Monitor: recall and false-alarm rate on fixes whose environment-added error exceeds 5 m"
-            + (f" (monitors: {named})" if named else "") + ". Bold: best in its column.")
-    return [Heading(2, "Estimators"), Table(table.header, table.rows, note)]
+    labels = {eid: _failed_label(eid, n) for eid, n in nodes.items()}
+    accuracy = ranked_table("estimator", nodes, ACCURACY_COLUMNS, labels,
+                            note="Horizontal errors in metres over the scans with an estimate (available); RPE: mean error per 10 m "
+                                 "and per 100 m of true travel. Bold: best in its column.")
+    # no monitor: its scores mean nothing; a window kind the run never met: its column would be all '–'
+    nodes = {eid: {**(n if monitors.get(eid, "none") != "none" else _without_monitor(n)), "monitor_kind": monitors.get(eid)}
+             for eid, n in nodes.items()}
+    columns = [c for c in DEGRADATION_COLUMNS if any(c.value(n) is not None for n in nodes.values())]
+    degradation = ranked_table("estimator", nodes, columns, labels,
+                               note="Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit). "
+                                    "Monitor: recall and false-alarm rate on measured fixes whose environment-added error exceeds 5 m. "
+                                    "Bold: best in its column.")
+    return [Heading(2, "Estimators"), accuracy, Heading(3, "Through GPS degradation"), degradation]
 
 
 def _without_monitor(node: dict) -> dict:
@@ -257,6 +275,7 @@ def _without_monitor(node: dict) -> dict:
 
 
 def _failed_label(eid: str, node: dict) -> str:
+    """The row label of an estimator or matcher: its id, and when it failed."""
     return f"{eid} (failed at {num(node.get('failed_at'), '.1f')} s)" if node.get("failed") else eid
 
 
@@ -279,21 +298,20 @@ def matchers(ctx: Context) -> list:
     nodes = ctx.metrics.get("matchers", {})
     if not nodes:
         return []
-    table = ranked_table("matcher", nodes, MATCHER_COLUMNS, labels={mid: _failed_label(mid, n) for mid, n in nodes.items()})
     note = ("Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; "
-            "degenerate: usable matches with an unobserved direction. Accuracy of the odometry chained from the true "
-            "start pose, after the best-fit rigid planar alignment (APE aligned). Bold: best in its column.")
-    return [Heading(2, "Scan matchers"), Table(table.header, table.rows, note)]
+            "degenerate: usable matches with an unobserved direction. Errors (m) of the odometry chained from the true "
+            "start pose; APE aligned: after the best-fit rigid planar motion. Bold: best in its column.")
+    return [Heading(2, "Scan matchers"), ranked_table("matcher", nodes, MATCHER_COLUMNS, {mid: _failed_label(mid, n) for mid, n in nodes.items()}, note)]
 
 
-def ranked_table(first: str, nodes: dict[str, dict], columns: list[Column], labels: dict[str, str]) -> Table:
+def ranked_table(first: str, nodes: dict[str, dict], columns: list[Column], labels: dict[str, str], note: str = "") -> Table:
     """A row per node, a cell per column; the best value of each ranked column in bold (none when all equal)."""
     texts = {c.title: {k: c.fmt(c.value(n)) for k, n in nodes.items()} for c in columns}
     best = {c.title: _best_text(c, nodes) for c in columns}
     rows = [[Cell(labels[k], css="fail" if n.get("failed") else "")]
-            + [Cell(texts[c.title][k], bold=texts[c.title][k] == best[c.title]) for c in columns]
+            + [Cell(texts[c.title][k], bold=texts[c.title][k] == best[c.title], css="text" if c.text else "") for c in columns]
             for k, n in nodes.items()]
-    return Table([first, *(c.title for c in columns)], rows)
+    return Table([first, *(c.title for c in columns)], rows, note)
 
 
 def _best_text(column: Column, nodes: dict[str, dict]) -> str | None:
@@ -333,12 +351,20 @@ def windows(ctx: Context) -> list:
     rows = []
     for i, kind in enumerate(kinds):
         cells = [Cell(str(kind)), Cell(num(w["start"][i] - ctx.t0, ".1f")), Cell(num(w["end"][i] - ctx.t0, ".1f")), Cell(num(w["duration"][i], ".1f"))]
-        cells += [Cell(f"{metres(w[f'{e}.max_error'][i])} / {metres(w[f'{e}.exit_error'][i])} ({num(w[f'{e}.recover_s'][i], '.1f', ' s')})")
-                  for e in eids]
+        cells += [Cell(passage_text(w[f"{e}.max_error"][i], w[f"{e}.exit_error"][i], w[f"{e}.recover_s"][i])) for e in eids]
         rows.append(cells)
     note = ("Times in seconds since the first scan. Per estimator: the worst horizontal error in the window / at its end, "
-            "in metres, and (in brackets) how long after the window it took to come back within 1 m of its error at entry.")
+            "in metres, and (in brackets) how long after the window it took to come back within 1 m of its error at entry "
+            "(never: not by the end of the run).")
     return [Heading(2, "GPS-degradation windows"), Table(["kind", "start (s)", "end (s)", "duration (s)", *eids], rows, note)]
+
+
+def passage_text(max_error: float, exit_error: float, recover_s: float) -> str:
+    """'max / exit (recovery)' of one estimator through one window."""
+    if max_error != max_error:
+        return NULL
+    recovery = "never" if recover_s != recover_s else f"{recover_s:.1f} s"
+    return f"{metres(max_error)} / {metres(exit_error)} ({recovery})"
 
 
 def figures(ctx: Context, *stems: str) -> list:
@@ -366,6 +392,7 @@ def to_markdown(blocks: list) -> str:
 def _markdown_table(table: Table) -> str:
     """A Markdown table (first column left-aligned, the rest right-aligned) and its note."""
     def cell(c: Cell) -> str:
+        """One Markdown cell: pipes escaped, bold when best or failed."""
         text = c.text.replace("|", "\\|")
         return f"**{text}**" if text and (c.bold or c.css == "fail") else text
     lines = ["| " + " | ".join(h.replace("|", "\\|") for h in table.header) + " |",
@@ -395,10 +422,13 @@ def to_html(blocks: list, run_dir: Path, title: str) -> str:
 def _html_table(table: Table) -> str:
     """An HTML table in a horizontally scrolling box, and its note."""
     def cell(c: Cell) -> str:
+        """One <td>: escaped, bold when best, classed pass/fail/text."""
         text = html.escape(c.text)
         text = f"<b>{text}</b>" if c.bold else text
         return f'<td class="{c.css}">{text}</td>' if c.css else f"<td>{text}</td>"
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in table.header)
+    text_columns = {i for row in table.rows for i, c in enumerate(row) if c.css == "text"}
+    head = "".join(f'<th class="text">{html.escape(h)}</th>' if i in text_columns else f"<th>{html.escape(h)}</th>"
+                   for i, h in enumerate(table.header))
     rows = "".join("<tr>" + "".join(cell(c) for c in row) + "</tr>\n" for row in table.rows)
     note = f'<p class="note">{html.escape(table.note)}</p>' if table.note else ""
     return f'<div class="scroll"><table>\n<tr>{head}</tr>\n{rows}</table></div>{note}'

@@ -1,0 +1,209 @@
+"""The run report (scenarios.report, scenarios.plots) on a small synthetic run directory written here
+with numpy: straight-line truth, an estimator with a known 1 m offset, one that holds its last
+position through a GPS blackout, a scan matcher, one passing and one failing expectation."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+
+from scenarios import report
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PLOTS = ("map", "error", "hdop_error", "yaw", "matchers")
+BLACKOUT = (110.0, 120.0)
+HEADING = 0.3  # rad
+OFFSET_M = 1.0
+
+
+def stats(values) -> dict:
+    v = np.asarray(values, dtype=float)
+    return {"rmse": float(np.sqrt(np.mean(v**2))), "mean": float(v.mean()), "median": float(np.median(v)),
+            "p95": float(np.percentile(v, 95)), "max": float(v.max())}
+
+
+def write_tum(path, t, x, y, yaw) -> None:
+    rows = np.column_stack([t, x, y, np.zeros_like(t), np.zeros_like(t), np.zeros_like(t), np.sin(yaw / 2), np.cos(yaw / 2)])
+    with open(path, "w") as f:
+        f.write("# timestamp tx ty tz qx qy qz qw\n")
+        np.savetxt(f, rows, fmt="%.6f")
+
+
+def write_csv(path, header, rows) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(rows)
+
+
+def make_run(run_dir, scans: int = 400) -> dict:
+    """A run directory with every data file a finished run has (no report); returns its metrics."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    t = 100.0 + 0.1 * np.arange(scans)
+    s = 2.0 * (t - t[0])
+    x, y, yaw = 500.0 + s * math.cos(HEADING), 200.0 + s * math.sin(HEADING), np.full(scans, HEADING)
+    write_tum(run_dir / "groundtruth.tum", t, x, y, yaw)
+    # ekf: 1 m to the left of the truth, 0.5 deg off, no estimate for the first second
+    n = np.array([-math.sin(HEADING), math.cos(HEADING)])
+    write_tum(run_dir / "ekf.tum", t[10:], x[10:] + OFFSET_M * n[0], y[10:] + OFFSET_M * n[1], yaw[10:] + math.radians(0.5))
+    # gps_only: the truth, but holding its last position through the blackout
+    held = np.maximum.accumulate(np.where((t >= BLACKOUT[0]) & (t < BLACKOUT[1]), 0, np.arange(scans)))
+    write_tum(run_dir / "gps_only.tum", t, x[held], y[held], yaw)
+    gps_only_error = np.hypot(x - x[held], y - y[held])
+    # icp odometry: a slow yaw drift
+    write_tum(run_dir / "icp.tum", t, x, y + 0.01 * s, yaw + 0.001 * np.arange(scans))
+    fix_t = t[::2]
+    rng = np.random.default_rng(0)
+    gps_rows = []
+    for k, ft in enumerate(fix_t):
+        quality = 0 if BLACKOUT[0] <= ft < BLACKOUT[1] else 1
+        err = rng.normal(0, 1.5, 2)
+        nlos = int(k % 17 == 0)
+        pos = ["", "", ""] if quality == 0 else [f"{x[2 * k] + err[0]:.3f}", f"{y[2 * k] + err[1]:.3f}", "2.000"]
+        errs = ["", "", "", ""] if quality == 0 else [f"{err[0]:.3f}", f"{err[1]:.3f}", "0.500", f"{np.hypot(*err):.3f}"]
+        gps_rows.append([f"{ft:.3f}", quality, *pos, "", "", "", 8, "" if quality == 0 else "1.20", *errs, "1.000",
+                         "" if quality == 0 else "0.300", nlos, 1, "0.0000", int(quality == 1), "1.5000"])
+    write_csv(run_dir / "gps.csv", ["t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop", "err_e", "err_n", "err_u",
+                                    "err_h", "open_sky_err_h", "added_err_h", "nlos_used", "gps_only.trusted", "gps_only.statistic",
+                                    "ekf.trusted", "ekf.statistic"], gps_rows)
+    keys = ("max_error", "entry_error", "exit_error", "added", "recover_s")
+    write_csv(run_dir / "windows.csv", ["kind", "start", "end", "duration"] + [f"{e}.{k}" for e in ("gps_only", "ekf") for k in keys],
+              [["blackout", *BLACKOUT, BLACKOUT[1] - BLACKOUT[0], f"{gps_only_error.max():.3f}", "0.000", f"{gps_only_error.max():.3f}", "19.800", "0.100",
+                "1.000", "1.000", "1.000", "0.000", "0.000"],
+               ["reacquisition", BLACKOUT[1], BLACKOUT[1] + 1.0, 1.0, "", "", "", "", "", "1.000", "1.000", "1.000", "0.000", ""]])
+    scan_rows = [[f"{t[i]:.3f}", f"{x[i]:.3f}", f"{y[i]:.3f}", "0.000", f"{math.degrees(HEADING):.3f}", int(i > 0 and i % 50 != 7),
+                  int(i % 50 == 7), int(100 <= i < 120), 5000 + 10 * (i % 30), "12.00"] for i in range(scans)]
+    write_csv(run_dir / "scans.csv", ["t", "x", "y", "z", "yaw_deg", "icp.ok", "icp.gated", "icp.degenerate", "icp.points", "icp.ms"], scan_rows)
+    (run_dir / "scenario.toml").write_text('name = "synthetic"\ndescription = "a straight line with one bridge"\nseed = 3\n'
+                                           'world = "charles_river"\n\n[stretch]\nstart_s = 100.0\nend_s = 140.0\n\n'
+                                           '[[estimators]]\nid = "gps_only"\nkind = "gps_only"\nmonitor = "none"\n\n'
+                                           '[[estimators]]\nid = "ekf"\nkind = "ekf"\nmonitor = "hdop"\n\n[estimators.monitor_params]\nmax_hdop = 2.0\n')
+    window = {"count": 1, "seconds": 10.0, "max_error": float(gps_only_error.max()), "exit_error": 19.8, "added": 19.8, "recover_s": 0.1, "recovered": 1.0}
+    no_window = {"count": 0, "seconds": 0.0, "max_error": None, "exit_error": None, "added": None, "recover_s": None, "recovered": None}
+    monitor = {"faulty": 0, "precision": None, "recall": 0.0, "false_alarm_rate": 0.02, "recall_at_5pct_fa": 0.0}
+
+    def estimator(error, windows):
+        return {"available": 1.0, "ape": stats(error), "rpe_10m": {**stats(error), "pairs": 10, "percent": 1.0},
+                "rpe_100m": {**stats(error), "pairs": 5, "percent": 1.0}, "yaw": stats([0.5, 0.5]),
+                "windows": {"blackout": windows, "nlos": no_window, "reacquisition": no_window, "injected": no_window},
+                "monitor": {"error_5m": monitor, "added_5m": monitor}, "failed": False}
+
+    metrics = {
+        "run": {"scenario": "synthetic", "scenario_hash": "0123456789abcdef", "seed": 3, "t_start": float(t[0]), "t_end": float(t[-1]),
+                "sim_s": float(t[-1] - t[0]), "wall_s": 4.0, "realtime_factor": 10.0, "peak_rss_mb": 300.0, "scans": scans,
+                "fixes": len(fix_t), "workers": 2, "lanes": [], "failures": [{"component": "matcher", "id": "icp", "stamp": 130.0, "reason": "boom"}]},
+        "gps": {"fixes": len(fix_t), "availability": 0.75, "valid": 0.75, "blackout": 0.25, "nlos_share": 0.06, "error": stats([1.0, 2.0]),
+                "open_sky_error": stats([1.0]), "added_error": stats([0.3]), "hdop_median": 1.2, "faulty_5m": None},
+        "estimators": {"gps_only": estimator(gps_only_error, window), "ekf": estimator(np.full(scans - 10, OFFSET_M), {**window, "max_error": 1.0})},
+        "matchers": {"icp": {"success": 0.97, "gated": 0.02, "degenerate": 0.05, "hz": 80.0, "ms": {"median": 12.0, "p95": 13.0},
+                             "points": {"median": 5150.0, "p10": 5000.0, "p90": 5290.0}, "ape": stats([0.5]), "ape_aligned": stats([0.2]),
+                             "rpe_10m": stats([0.1]), "rpe_100m": stats([1.0]), "yaw": stats([1.0]), "failed": True, "failed_at": 130.0}},
+        "expectations": [
+            {"expect": "estimators.ekf.ape.p95 < 6", "value": 1.0, "pass": True, "reason": ""},
+            {"expect": "estimators.gps_only.ape.max < 5", "value": float(gps_only_error.max()), "pass": False,
+             "reason": f"estimators.gps_only.ape.max = {gps_only_error.max():.4g}, expected < 5"},
+        ],
+    }
+    (run_dir / "metrics.json").write_text(json.dumps(metrics, indent=2))
+    return metrics
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "synthetic"
+    make_run(out)
+    report.write(out)
+    return out
+
+
+def test_every_plot_is_a_valid_png(run_dir):
+    for stem in PLOTS:
+        data = (run_dir / "plots" / f"{stem}.png").read_bytes()
+        assert data.startswith(PNG_SIGNATURE), stem
+        assert data[-12:-4] == b"\x00\x00\x00\x00IEND", stem  # complete: ends with the IEND chunk
+        assert len(data) > 5_000, stem  # something was drawn
+
+
+def test_html_is_self_contained(run_dir):
+    page = (run_dir / "report.html").read_text()
+    links = re.findall(r"""\b(?:src|href)\s*=\s*["']([^"']*)""", page, flags=re.I)
+    assert len(links) == len(PLOTS)
+    assert all(link.startswith("data:image/png;base64,") for link in links)
+    assert "://" not in page and "<link" not in page and "<script" not in page and "@import" not in page
+    assert "<title>riverbench: synthetic</title>" in page
+
+
+def test_html_names_every_estimator_and_the_outcomes(run_dir):
+    page = (run_dir / "report.html").read_text()
+    for name in ("gps_only", "ekf", "icp"):
+        assert name in page
+    assert '<td class="pass">PASS</td>' in page
+    assert '<td class="fail">FAIL</td>' in page
+
+
+def test_markdown_holds_expectations_tables_and_plot_links(run_dir):
+    text = (run_dir / "report.md").read_text()
+    assert text.startswith("# riverbench report: synthetic\n")
+    assert "a straight line with one bridge" in text and "seed 3" in text and "0123456789abcdef" in text
+    assert "| estimators.ekf.ape.p95 < 6 | 1 | PASS |" in text
+    assert "estimators.gps_only.ape.max < 5" in text and "**FAIL**" in text and "expected < 5" in text
+    for stem in PLOTS:
+        assert f"](plots/{stem}.png)" in text
+    assert "Failures" in text and "boom" in text
+    assert "None" not in text and "nan" not in text.lower()
+
+
+def test_best_value_per_column_is_bold_and_nulls_are_dashes(run_dir):
+    text = (run_dir / "report.md").read_text()
+    ekf_rows = [line for line in text.splitlines() if line.startswith("| ekf |")]
+    gps_only_rows = [line for line in text.splitlines() if line.startswith("| gps_only |")]
+    assert len(ekf_rows) == len(gps_only_rows) == 2  # accuracy, and through GPS degradation
+    assert ekf_rows[0].split("|")[3].strip() == f"**{OFFSET_M:.2f}**"  # APE rmse: the 1 m offset beats the blackout's drift
+    assert "**" not in gps_only_rows[0].split("|")[3]
+    assert ekf_rows[1].split("|")[2].strip() == "**1.00**"  # blackout max
+    assert gps_only_rows[1].endswith("| none | – | – |")  # no monitor: no recall, no false alarms
+    gps_shares = text.split("## GPS\n")[1].strip().split("\n\n")[0]
+    assert gps_shares.endswith("| – |")  # faulty_5m is null
+
+
+def test_nothing_half_written_remains(run_dir):
+    leftovers = [p.name for p in [*run_dir.iterdir(), *(run_dir / "plots").iterdir()] if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert leftovers == []
+    assert all(p.stat().st_mode & 0o777 == 0o644 for p in [run_dir / "report.md", run_dir / "report.html", *(run_dir / "plots").iterdir()])
+    assert sorted(p.name for p in (run_dir / "plots").iterdir()) == sorted(f"{s}.png" for s in PLOTS)
+
+
+def test_rewriting_a_report_replaces_it(run_dir):
+    before = (run_dir / "report.md").read_text()
+    report.write(run_dir)
+    assert (run_dir / "report.md").read_text() == before
+
+
+def test_a_scenario_given_names_the_report(tmp_path):
+    import scenarios
+
+    scenario = scenarios.load("quickstart")
+    out = tmp_path / "given"
+    make_run(out)
+    report.write(out, scenario=scenario)
+    text = (out / "report.md").read_text()
+    assert text.startswith("# riverbench report: quickstart\n")
+    assert scenario.description in text and scenario.hash in text
+
+
+def test_a_run_without_matchers_windows_or_expectations(tmp_path):
+    out = tmp_path / "bare"
+    metrics = make_run(out)
+    metrics["matchers"], metrics["expectations"], metrics["run"]["failures"] = {}, [], []
+    (out / "metrics.json").write_text(json.dumps(metrics))
+    (out / "windows.csv").write_text("kind,start,end,duration\n")
+    (out / "scans.csv").write_text("t,x,y,z,yaw_deg\n")
+    report.write(out)
+    assert sorted(p.stem for p in (out / "plots").iterdir()) == ["error", "hdop_error", "map", "yaw"]
+    text = (out / "report.md").read_text()
+    assert "sets no expectations" in text and "No blackout" in text and "Scan matchers" not in text

@@ -92,6 +92,7 @@ def run(
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         metrics_tree, outcomes = _run_into(scenario, tmp, workers, report, progress)
+        os.chmod(tmp, 0o755)  # mkdtemp made it private; a run directory is for everyone to read
         if out.exists():
             out.rmdir()
         os.replace(tmp, out)

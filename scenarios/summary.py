@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from rich import box
+from rich.console import Group
 from rich.table import Table
 
 
@@ -9,24 +11,29 @@ def _num(value, fmt: str = ".2f") -> str:
     return "–" if value is None else format(value, fmt)
 
 
-def run_table(result) -> Table:
-    """Estimators, matchers and expectations of a finished run."""
+def run_table(result) -> Group:
+    """Estimators and matchers of a finished run (fits 80 columns), then each expectation with its value."""
     m = result.metrics
     info = m["run"]
-    table = Table(title=f"{info['scenario']}: {info['sim_s']:.0f} s simulated in {info['wall_s']:.0f} s "
-                        f"({_num(info['realtime_factor'], '.1f')}x real time), {info['scans']} scans, {info['fixes']} fixes")
-    for col in ("under test", "APE rmse", "p95", "max", "blackout max", "RPE 100 m", "yaw p95", "success", "Hz"):
-        table.add_column(col, justify="right" if col != "under test" else "left")
+    title = (f"{info['scenario']}: {info['sim_s']:.0f} s simulated in {info['wall_s']:.0f} s "
+             f"({_num(info['realtime_factor'], '.1f')}x real time), {info['scans']} scans, {info['fixes']} fixes")
+    table = Table(title=title, box=box.SIMPLE_HEAD, caption="m and deg; outage: in GPS blackouts; *: matcher odometry")
+    table.add_column("under test", no_wrap=True)
+    for col in ("APE\nrmse", "APE\np95", "APE\nmax", "outage\nmax", "RPE\n100 m", "yaw\np95", "match\nok", "Hz"):
+        table.add_column(col, justify="right")
     for eid, e in m["estimators"].items():
         table.add_row(eid, _num(e["ape"]["rmse"]), _num(e["ape"]["p95"]), _num(e["ape"]["max"]),
                       _num(e["windows"]["blackout"]["max_error"]), _num(e["rpe_100m"]["mean"]), _num(e["yaw"]["p95"], ".1f"), "", "")
     for mid, x in m["matchers"].items():
-        table.add_row(f"{mid} (odometry)", _num(x["ape"]["rmse"]), _num(x["ape"]["p95"]), _num(x["ape"]["max"]), "",
-                      _num(x["rpe_100m"]["mean"]), _num(x["yaw"]["p95"], ".1f"), _num(x["success"], ".1%"), _num(x["hz"], ".0f"))
+        table.add_row(f"{mid}*", _num(x["ape"]["rmse"]), _num(x["ape"]["p95"]), _num(x["ape"]["max"]), "",
+                      _num(x["rpe_100m"]["mean"]), _num(x["yaw"]["p95"], ".1f"), _num(x["success"], ".0%"), _num(x["hz"], ".0f"))
+    expectations = Table(box=box.SIMPLE_HEAD, show_edge=False)
+    for col, justify in (("", "left"), ("expectation", "left"), ("value", "right")):
+        expectations.add_column(col, justify=justify)
     for outcome in m["expectations"]:
         mark = "[green]pass[/]" if outcome["pass"] else "[bold red]FAIL[/]"
-        table.add_row(f"{mark} {outcome['expect']}", _num(outcome["value"], ".3g"), *[""] * 7)
-    return table
+        expectations.add_row(mark, outcome["expect"], _num(outcome["value"], ".3g"))
+    return Group(table, expectations) if m["expectations"] else Group(table)
 
 
 def suite_table(cases) -> Table:

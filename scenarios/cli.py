@@ -215,9 +215,9 @@ def schema() -> None:
     """The JSON Schema of a scenario file (for editors and validators)."""
     import json
 
-    from scenarios.spec import Scenario
+    from scenarios.schema import scenario_json_schema
 
-    print(json.dumps(Scenario.model_json_schema(), indent=2))
+    print(json.dumps(scenario_json_schema(), indent=2))
 
 
 if __name__ == "__main__":

@@ -128,6 +128,27 @@ def test_fast_variant_takes_its_stretch_and_expectations():
     assert plain.fast_variant() is plain
 
 
-def test_schema_lists_every_section():
-    schema = Scenario.model_json_schema()
+def test_schema_types_every_section_and_each_kinds_params():
+    import jsonschema
+
+    from scenarios.library import path_of
+    from scenarios.schema import scenario_json_schema
+
+    schema = scenario_json_schema()
     assert {"world", "stretch", "vessel", "lidar", "gnss", "matchers", "estimators", "expect"} <= set(schema["properties"])
+    check = jsonschema.Draft202012Validator(schema)
+    for name in scenarios.available():  # the library files as written, and resolved with every default
+        check.validate(tomllib.loads(path_of(name).read_text()))
+        check.validate(scenarios.load(name).resolved())
+    good = {"matchers": [{"id": "g", "kind": "gicp", "params": {"voxel_m": 0.5}}],
+            "estimators": [{"id": "e", "kind": "ekf", "monitor": "cn0", "monitor_params": {}}]}
+    check.validate(good)
+    wrong = [({"id": "g", "kind": "gicp", "params": {"voxel": 0.5}}, None),  # a typo: not a gicp key
+             ({"id": "g", "kind": "gicp", "params": {"voxel_m": "fine"}}, None),
+             ({"id": "g", "kind": "icp"}, None),
+             (None, {"id": "e", "kind": "ekf", "params": {"monitor": "cn0"}}),  # set on the estimator, not its params
+             (None, {"id": "e", "kind": "pf", "monitor": "cn0", "monitor_params": {"gate_sigma": "high"}})]
+    for bad_matcher, bad_estimator in wrong:
+        data = {"matchers": [bad_matcher or good["matchers"][0]], "estimators": [bad_estimator or good["estimators"][0]]}
+        assert not check.is_valid(data), data
+    assert not check.is_valid({"world": "open_river", "world_params": {"no_such_parameter": 1}})

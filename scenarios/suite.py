@@ -36,9 +36,18 @@ class CaseResult:
         return not self.error and all(e["pass"] for e in self.expectations)
 
 
+class _Terminated(BaseException):
+    """SIGTERM from the suite (time-out or Ctrl-C): unwind so the run removes its temporary directory."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise _Terminated
+
+
 def _run_case(index: int, source: str, fast: bool, out_dir: str, workers: int, results) -> None:
     """Child process: load, run and report back one scenario (never raises)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the suite's to handle; it terminates us
+    signal.signal(signal.SIGTERM, _raise_terminated)
     start = time.perf_counter()
     try:
         from scenarios.library import load
@@ -80,8 +89,9 @@ def run_suite(
                 running[index] = (proc, time.perf_counter(), source)
             try:
                 index, case = results.get(timeout=0.5)
-                running.pop(index)[0].join()
-                _finish(done, index, case, on_done)
+                if index in running:  # not one already timed out
+                    running.pop(index)[0].join()
+                    _finish(done, index, case, on_done)
             except queue.Empty:
                 pass
             for index, (proc, started, source) in list(running.items()):
@@ -92,16 +102,23 @@ def run_suite(
                                       error=f"scenario process died (exit code {proc.exitcode})")
                     _finish(done, index, case, on_done)
                 elif elapsed > timeout_s:
-                    proc.terminate()
-                    proc.join()
+                    _stop(proc)
                     running.pop(index)
                     case = CaseResult(Path(source).stem, str(out_dir / Path(source).stem), elapsed, error=f"timed out after {timeout_s:g} s")
                     _finish(done, index, case, on_done)
     finally:
         for proc, _, _ in running.values():
-            proc.terminate()
-            proc.join()
+            _stop(proc)
     return [done[i] for i in sorted(done)]
+
+
+def _stop(proc: mp.Process, grace_s: float = 30.0) -> None:
+    """SIGTERM (the run unwinds and cleans up), then SIGKILL if it has not ended within grace_s."""
+    proc.terminate()
+    proc.join(grace_s)
+    if proc.is_alive():
+        proc.kill()
+        proc.join()
 
 
 def _finish(done: dict, index: int, case: CaseResult, on_done) -> None:

@@ -1,6 +1,7 @@
 """The regression suite: the library's fast variants pass through `riverbench suite` (JUnit written),
 and the expectations are not loose: each scenario fails when what it tests is taken away."""
 
+import json
 import re
 import xml.etree.ElementTree as ET
 
@@ -88,3 +89,15 @@ def test_expectations_fail_without_what_the_scenario_tests(name, tmp_path):
     result = scenarios.run(variant, tmp_path / "run", workers=1, report=False)
     measured_failures = [o for o in result.outcomes if not o.passed and o.actual == o.actual]  # a value, not NaN
     assert measured_failures, f"{name}: no expectation fails on a measured value without what it tests: {result.outcomes}"
+
+
+def test_a_scenario_that_times_out_is_a_failure_and_leaves_nothing(tmp_path):
+    slow = tmp_path / "slow.toml"
+    slow.write_text('world = "open_river"\nstretch = {start_s = 0.0, end_s = 600.0}\n'
+                    'matchers = [{id = "bev", kind = "bev3dof"}]\nestimators = [{id = "gps", kind = "gps_only"}]\n')
+    runs = tmp_path / "runs"
+    result = runner.invoke(app, ["suite", str(slow), "--workers", "1", "--timeout", "12", "--out", str(runs), "--quiet"])
+    assert result.exit_code == 1
+    case = json.loads((runs / "suite.json").read_text())[0]
+    assert case["error"] == "timed out after 12 s" and not case["passed"]
+    assert sorted(p.name for p in runs.iterdir()) == ["suite.json"]  # the run's temporary directory went with it

@@ -62,17 +62,34 @@ class FixTable:
 @dataclass
 class RunRecord:
     """A finished run's columns. scan_t (N,), truth (N, 4, 4) world<-base_link, estimates[id] (N, 4, 4)
-    (NaN before initialisation or after a failure), est_cov[id] (N, 3, 3) of (x, y, yaw),
-    matches[id], fixes, failures (component, id, stamp, reason), injected (start, end) GPS faults."""
+    (NaN before initialisation or after a failure), matches[id], fixes, failures (component, id,
+    stamp, reason), injected (start, end) GPS faults."""
 
     scan_t: np.ndarray
     truth: np.ndarray
     estimates: dict[str, np.ndarray]
-    est_cov: dict[str, np.ndarray]
     matches: dict[str, MatcherTrack]
     fixes: FixTable
     failures: list[dict] = field(default_factory=list)
     injected: list[tuple[float, float]] = field(default_factory=list)
+
+
+class Column:
+    """Rows of one shape and dtype in a growable numpy array (capacity doubles): a row costs its
+    bytes, not a Python object each, so a long run's record stays small."""
+
+    def __init__(self, row: np.ndarray) -> None:
+        self._data = np.empty((1024, *row.shape), dtype=row.dtype)
+        self._n = 0
+
+    def append(self, row: np.ndarray) -> None:
+        if self._n == len(self._data):
+            self._data = np.concatenate([self._data, np.empty_like(self._data)])
+        self._data[self._n] = row
+        self._n += 1
+
+    def array(self) -> np.ndarray:
+        return self._data[: self._n]
 
 
 class Recorder:
@@ -81,17 +98,20 @@ class Recorder:
     def __init__(self, matcher_ids: list[str], estimator_ids: list[str], mount: np.ndarray) -> None:
         self.matcher_ids, self.estimator_ids = matcher_ids, estimator_ids
         self.mount, self.mount_inv = mount, np.linalg.inv(mount)
-        self.scan_rows: dict[str, list] = {}
-        self.fix_rows: dict[str, list] = {}
+        self.scan_rows: dict[str, Column] = {}
+        self.fix_rows: dict[str, Column] = {}
         self.failures: list[dict] = []
         self._lidar_at: dict[str, dict[float, np.ndarray]] = {m: {} for m in matcher_ids}
         self._latest_ref: dict[str, np.ndarray | None] = {m: None for m in matcher_ids}
 
-    def _add(self, rows: dict, key: str, value) -> None:
-        rows.setdefault(key, []).append(value)
+    def _add(self, rows: dict[str, Column], key: str, value) -> None:
+        row = np.asarray(value)
+        if key not in rows:
+            rows[key] = Column(row)
+        rows[key].append(row)
 
-    def scan(self, stamp: float, truth: np.ndarray, results: dict[str, MatchResult], estimates: dict[str, tuple]) -> None:
-        """One scan: true base_link pose, every matcher's result, every estimator's (pose, cov) after it."""
+    def scan(self, stamp: float, truth: np.ndarray, results: dict[str, MatchResult], estimates: dict[str, np.ndarray]) -> None:
+        """One scan: true base_link pose, every matcher's result, every estimator's pose after it."""
         self._add(self.scan_rows, "t", stamp)
         self._add(self.scan_rows, "truth", truth)
         for mid, r in results.items():
@@ -101,9 +121,8 @@ class Recorder:
             self._add(self.scan_rows, f"points:{mid}", int(r.n_points))
             self._add(self.scan_rows, f"seconds:{mid}", float(r.seconds))
             self._add(self.scan_rows, f"pose:{mid}", self._chain(mid, stamp, truth, r))
-        for eid, (pose, cov) in estimates.items():
+        for eid, pose in estimates.items():
             self._add(self.scan_rows, f"est:{eid}", pose)
-            self._add(self.scan_rows, f"cov:{eid}", cov)
 
     def _chain(self, mid: str, stamp: float, truth: np.ndarray, r: MatchResult) -> np.ndarray:
         """World<-base_link of this scan from the matcher's odometry. A scan that passed the gate becomes
@@ -151,8 +170,7 @@ class Recorder:
         s, f = self.scan_rows, self.fix_rows
 
         def col(rows, key, shape=(0,), dtype=float):
-            values = rows.get(key)
-            return np.asarray(values, dtype=dtype) if values else np.zeros(shape, dtype=dtype)
+            return rows[key].array().astype(dtype, copy=False) if key in rows else np.zeros(shape, dtype=dtype)
 
         matches = {
             m: MatcherTrack(col(s, f"ok:{m}", dtype=bool), col(s, f"gated:{m}", dtype=bool), col(s, f"degenerate:{m}", dtype=bool),
@@ -170,7 +188,6 @@ class Recorder:
         return RunRecord(
             scan_t=col(s, "t"), truth=col(s, "truth", (0, 4, 4)),
             estimates={e: col(s, f"est:{e}", (0, 4, 4)) for e in self.estimator_ids},
-            est_cov={e: col(s, f"cov:{e}", (0, 3, 3)) for e in self.estimator_ids},
             matches=matches, fixes=fixes, failures=list(self.failures), injected=list(injected),
         )
 

@@ -134,8 +134,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         for mid, why in errors.items():
             recorder.failure("matcher", mid, event.stamp, why)
         feed_estimators(lambda eid, est: est.add_match(event.stamp, results[feeds[eid]]) if feeds[eid] else None, event.stamp)
-        poses = {eid: ((est.pose, est.cov) if eid not in dead else (nan_pose(), np.full((3, 3), np.inf)))
-                 for eid, est in estimators.items()}
+        poses = {eid: est.pose if eid not in dead else nan_pose() for eid, est in estimators.items()}
         recorder.scan(event.stamp, trajectory.pose(event.stamp), results, poses)
 
     def process_fix(fix, nmea) -> None:

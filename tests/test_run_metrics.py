@@ -91,7 +91,7 @@ def run_record(truth, estimates=None, matches=None, fixes=None, t=None) -> RunRe
     if fixes is None:
         fixes = fix_table(np.zeros(0), trusted={e: [] for e in estimates}, statistic={e: [] for e in estimates})
     return RunRecord(scan_t=np.arange(n) / 10 if t is None else np.asarray(t, dtype=float), truth=truth,
-                     estimates=estimates, est_cov={e: np.zeros((n, 3, 3)) for e in estimates},
+                     estimates=estimates,
                      matches=matches or {}, fixes=fixes)
 
 
@@ -731,9 +731,33 @@ def test_tum_with_no_finite_pose_has_only_the_header(tmp_path):
     assert files.read_tum(path).shape[0] == 0
 
 
-@pytest.mark.skip(reason="evo is not installed (and must not be installed here)")
-def test_tum_readable_by_evo():  # pragma: no cover
-    pass
+def test_tum_files_read_by_evo_give_our_ape_and_yaw_error(tmp_path):
+    """evo, the field's trajectory evaluator, reads our TUM files as they are and, on a planar
+    error (no height error), its APE and rotation error equal our horizontal APE and yaw error."""
+    from evo.core import metrics as evo_metrics
+    from evo.tools import file_interface
+
+    n = 600
+    truth = arc(n, radius=60.0, dtheta=0.005)
+    i = np.arange(n)
+    est = track(truth[:, 0, 3] + 1.5 * np.sin(i / 40.0), truth[:, 1, 3] + 0.8 * np.cos(i / 25.0),
+                metrics.yaw_of(truth) + np.radians(3.0) * np.sin(i / 60.0))
+    est[:50] = np.nan  # before initialisation: no rows
+    t = i / 10.0
+    files.write_tum(tmp_path / "groundtruth.tum", t, truth)
+    files.write_tum(tmp_path / "est.tum", t, est)
+    reference = file_interface.read_tum_trajectory_file(str(tmp_path / "groundtruth.tum"))
+    estimate = file_interface.read_tum_trajectory_file(str(tmp_path / "est.tum"))
+    assert reference.num_poses == n and estimate.num_poses == n - 50
+    reference.reduce_to_ids(np.arange(50, n))  # evo's sync.associate_trajectories does the same by stamps
+    ours = metrics.estimator_metrics(run_record(truth, {"e": est}, t=t), "e", [])
+    for relation, key, unit in ((evo_metrics.PoseRelation.translation_part, "ape", 1e-5),
+                                (evo_metrics.PoseRelation.rotation_angle_deg, "yaw", 1e-4)):
+        ape = evo_metrics.APE(relation)
+        ape.process_data((reference, estimate))
+        theirs = ape.get_all_statistics()
+        for stat in ("rmse", "mean", "median", "max"):
+            assert ours[key][stat] == pytest.approx(theirs[stat], abs=unit), (key, stat)
 
 
 def test_json_safe():
@@ -757,3 +781,14 @@ def test_compute_tree_is_json_safe():
     back = json.loads(text)
     assert back["estimators"]["e"]["available"] == pytest.approx(20 / 30)
     assert back["estimators"]["e"]["windows"]["nlos"]["max_error"] is None
+
+
+def test_recorder_keeps_every_row_across_its_buffers_growth():
+    n = 2500  # past two doublings of the 1024-row buffers
+    truth = arc(n, radius=200.0, dtheta=0.001)
+    rec = Recorder([], ["e"], MOUNT)
+    for i in range(n):
+        rec.scan(i / 10, truth[i], {}, {"e": truth[i] + 1.0})
+    record = rec.finish([])
+    assert np.array_equal(record.truth, truth) and np.array_equal(record.estimates["e"], truth + 1.0)
+    assert np.array_equal(record.scan_t, np.arange(n) / 10)

@@ -37,10 +37,14 @@ def run_table(result) -> Group:
 
 
 def suite_table(cases) -> Table:
-    """One row per scenario: pass/fail, expectations passed, speed, the first failure."""
-    table = Table(title="riverbench suite")
-    for col in ("scenario", "result", "expectations", "x real time", "wall s", "first failure"):
-        table.add_column(col)
+    """One row per scenario: pass/fail, expectations passed, speed, the first failure (fits 80 columns)."""
+    table = Table(title="riverbench suite", box=box.SIMPLE_HEAD)
+    table.add_column("scenario", no_wrap=True)
+    table.add_column("result")
+    table.add_column("expect-\nations", justify="right")
+    table.add_column("x real\ntime", justify="right")
+    table.add_column("wall\ns", justify="right")
+    table.add_column("first failure", overflow="fold")
     for c in cases:
         passed = sum(e["pass"] for e in c.expectations)
         first = c.error or next((e["reason"] for e in c.expectations if not e["pass"]), "")

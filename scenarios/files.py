@@ -34,8 +34,9 @@ def write_tum(path: Path, t: np.ndarray, poses: np.ndarray) -> int:
 
 
 def read_tum(path: Path) -> np.ndarray:
-    """(N, 8) rows of a TUM file."""
-    return np.loadtxt(path, comments="#", ndmin=2)
+    """(N, 8) rows of a TUM file ((0, 8) when it holds only the header, e.g. an estimator that never initialised)."""
+    rows = [line.split() for line in Path(path).read_text().splitlines() if line.strip() and not line.startswith("#")]
+    return np.array(rows, dtype=float).reshape(-1, 8)
 
 
 def write_gps_csv(path: Path, rec: RunRecord) -> None:

@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
+from scenarios import files
 from scenarios.atomic import atomic_path
 
 WINDOW_COLOURS = {"blackout": "#d62728", "nlos": "#ff7f0e", "reacquisition": "#e6c229", "injected": "#9467bd"}
@@ -94,8 +95,7 @@ def load(run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_l
 
 def read_tum(path: Path) -> Track:
     """A TUM file as a planar Track (empty when the file is missing or has no rows)."""
-    rows = np.loadtxt(path, comments="#", ndmin=2) if path.exists() else np.zeros((0, 8))
-    rows = rows if rows.size else np.zeros((0, 8))
+    rows = files.read_tum(path) if path.exists() else np.zeros((0, 8))
     qx, qy, qz, qw = rows[:, 4:8].T
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy**2 + qz**2))
     return Track(rows[:, 0], rows[:, 1], rows[:, 2], yaw)

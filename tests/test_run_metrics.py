@@ -723,7 +723,6 @@ def test_tum_round_trip(tmp_path):
     assert np.allclose(Rotation.from_quat(rows[:, 4:8]).as_matrix(), poses[kept, :3, :3], atol=1e-8)
 
 
-@pytest.mark.filterwarnings("ignore:loadtxt")
 def test_tum_with_no_finite_pose_has_only_the_header(tmp_path):
     path = tmp_path / "empty.tum"
     assert files.write_tum(path, np.arange(3.0), np.full((3, 4, 4), np.nan)) == 0

@@ -75,21 +75,27 @@ class RunRecord:
 
 
 class Column:
-    """Rows of one shape and dtype in a growable numpy array (capacity doubles): a row costs its
-    bytes, not a Python object each, so a long run's record stays small."""
+    """Rows of one shape and dtype in numpy blocks of BLOCK rows: a row costs its bytes (no Python
+    object each, no doubling slack, no copy while recording), so a long run's record stays small."""
+
+    BLOCK = 4096
 
     def __init__(self, row: np.ndarray) -> None:
-        self._data = np.empty((1024, *row.shape), dtype=row.dtype)
-        self._n = 0
+        self._blocks = [np.empty((self.BLOCK, *row.shape), dtype=row.dtype)]
+        self._n = 0  # rows in the last block
 
     def append(self, row: np.ndarray) -> None:
-        if self._n == len(self._data):
-            self._data = np.concatenate([self._data, np.empty_like(self._data)])
-        self._data[self._n] = row
+        if self._n == len(self._blocks[-1]):
+            self._blocks.append(np.empty((self.BLOCK, *row.shape), dtype=self._blocks[-1].dtype))
+            self._n = 0
+        self._blocks[-1][self._n] = row
         self._n += 1
 
     def array(self) -> np.ndarray:
-        return self._data[: self._n]
+        """All rows as one array (the blocks are merged once and released)."""
+        merged = np.concatenate([*self._blocks[:-1], self._blocks[-1][: self._n]])
+        self._blocks, self._n = [merged], len(merged)
+        return merged
 
 
 class Recorder:

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from matcher.result import MatchResult
 from scenarios import files, metrics
 from scenarios import windows as win
-from scenarios.record import FixTable, MatcherTrack, Recorder, RunRecord
+from scenarios.record import Column, FixTable, MatcherTrack, Recorder, RunRecord
 
 FAST = settings(max_examples=40, deadline=None)
 STAT_KEYS = ("rmse", "mean", "median", "p95", "max")
@@ -782,8 +782,8 @@ def test_compute_tree_is_json_safe():
     assert back["estimators"]["e"]["windows"]["nlos"]["max_error"] is None
 
 
-def test_recorder_keeps_every_row_across_its_buffers_growth():
-    n = 2500  # past two doublings of the 1024-row buffers
+def test_recorder_keeps_every_row_across_its_blocks():
+    n = 9000  # past two 4096-row blocks
     truth = arc(n, radius=200.0, dtheta=0.001)
     rec = Recorder([], ["e"], MOUNT)
     for i in range(n):
@@ -791,3 +791,13 @@ def test_recorder_keeps_every_row_across_its_buffers_growth():
     record = rec.finish([])
     assert np.array_equal(record.truth, truth) and np.array_equal(record.estimates["e"], truth + 1.0)
     assert np.array_equal(record.scan_t, np.arange(n) / 10)
+
+
+def test_column_grows_after_it_was_read():
+    column = Column(np.zeros(2))
+    for i in range(5000):
+        column.append(np.array([i, -i]))
+    assert column.array().shape == (5000, 2)
+    for i in range(5000, 9000):
+        column.append(np.array([i, -i]))
+    assert np.array_equal(column.array()[:, 0], np.arange(9000))

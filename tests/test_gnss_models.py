@@ -7,7 +7,7 @@ from datetime import timedelta
 import numpy as np
 import pymap3d
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import gnss_worlds as gw
@@ -70,6 +70,7 @@ def test_geodetic_conversion_matches_pymap3d(e, n, u):
 
 
 @settings(max_examples=100, deadline=None)
+@example(n_sats=4, seed=24, position=(2.0, 0.0, 0.0), clock=0.0)  # an ill-conditioned geometry CI once drew
 @given(
     n_sats=st.integers(4, 12),
     seed=st.integers(0, 2**32 - 1),
@@ -90,9 +91,11 @@ def test_wls_recovers_position_and_clock_over_random_geometries(n_sats, seed, po
     sol = wls.solve(sats, pseudorange, np.full(n_sats, 3.0), np.zeros(4))
     np.testing.assert_allclose(sol.enu, truth, atol=1e-3)
     assert sol.clock_m == pytest.approx(clock, abs=1e-3)
-    # Q comes from the geometry at the start of the last (short) step: equal to ~1e-7 rad.
-    np.testing.assert_allclose(sol.q, q, rtol=1e-5, atol=1e-6)
-    np.testing.assert_allclose(sol.cov, 9.0 * q[:3, :3], rtol=1e-5, atol=1e-5)
+    # Q comes from the geometry at the start of the last (short) step, directions ~1e-7 rad off; the
+    # inverse amplifies that as |Q|^2 (dQ = -Q dN Q), so the tolerance grows with the conditioning.
+    tol = 1e-6 * max(1.0, np.abs(q).max()) ** 2
+    np.testing.assert_allclose(sol.q, q, rtol=1e-5, atol=tol)
+    np.testing.assert_allclose(sol.cov, 9.0 * q[:3, :3], rtol=1e-5, atol=9.0 * tol)
 
 
 def test_wls_from_a_nearby_start_converges_in_one_step():

@@ -4,7 +4,6 @@ a matcher that always fails; and the registry names what is wrong."""
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest

@@ -12,7 +12,6 @@ import scenarios
 from scenarios import overrides
 from scenarios.expectations import Expectation
 from scenarios.library import validate
-from scenarios.spec import Scenario
 
 
 def test_every_library_scenario_loads_with_a_description():

@@ -180,6 +180,74 @@ def suite(
     raise typer.Exit(1 if failed else 0)
 
 
+@app.command()
+def sweep(
+    scenario: list[str] = typer.Argument(..., help="library names or .toml paths; every point runs on each"),
+    grid: list[str] = typer.Option([], "--grid", help="key=v1,v2,... (TOML values); repeat for a cartesian grid"),
+    sample: tuple[int, str] = typer.Option((0, ""), "--sample", show_default=False,
+                                           help="N key=lo:hi[:log][,key2=lo:hi...]: N joint uniform (or log-uniform) draws"),
+    seeds: int = typer.Option(1, min=1, help="repeat every point over this many seeds (the scenario's seed and the next)"),
+    set_: list[str] = typer.Option([], "--set", help="fix a field for every run: key=value, repeatable"),
+    workers: int = typer.Option(2, min=1, help="runs at once (local: processes; ray: CPUs of a local Ray instance)"),
+    backend: str = typer.Option("local", help="local (process pool) or ray"),
+    address: str = typer.Option(None, help="address of an existing Ray cluster (default: start a local instance)"),
+    out: Path = typer.Option(None, help="sweep directory (default runs/sweep-<UTC time>/); give an existing one to resume it"),
+    objective: str = typer.Option(None, help="metric to rank parameters by, a dotted path of metrics.json"),
+    maximize: bool = typer.Option(False, "--maximize/--minimize", help="whether a higher objective is better"),
+    plot: list[str] = typer.Option([], "--plot", help="also plot this metric against each swept parameter, repeatable"),
+    lean: bool = typer.Option(False, "--lean", help="skip each run's report and plots (metrics and data files are kept)"),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="run again the points whose earlier run failed"),
+    sample_seed: int = typer.Option(0, help="seed of the --sample draws"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar or per-run lines"),
+) -> None:
+    """Run a parameter sweep: a results table (Parquet and CSV), a run directory per run, plots, the best parameters."""
+    from datetime import datetime, timezone
+
+    from scenarios import sweep as sweeping
+    from scenarios.sweep_plan import Axis, Range, SweepPlan
+    from scenarios.sweep_progress import SweepProgress, summary
+
+    with user_errors():
+        if backend not in ("local", "ray"):
+            raise ValueError(f"--backend {backend!r}: use local or ray")
+        if address and backend != "ray":
+            raise ValueError("--address is for --backend ray")
+        if backend == "ray":
+            from scenarios.ray_backend import import_ray
+
+            import_ray()
+        count, ranges = sample
+        plan = SweepPlan(tuple(scenario), tuple(Axis.parse(g) for g in grid),
+                         tuple(Range.parse(r) for r in ranges.split(",") if r.strip()) if ranges else (),
+                         samples=count, seeds=seeds, fixed=tuple(set_), sample_seed=sample_seed)
+        if count and not ranges:
+            raise ValueError(f"--sample {count}: name what to sample, e.g. --sample {count} lidar.range_noise_m=0.01:0.05")
+        points = plan.points()
+        for option, metric in [("--objective", objective), *(("--plot", m) for m in plot)]:
+            if metric:
+                sweeping.check_metric(metric, points, option)
+        out = out or Path("runs") / f"sweep-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+        sweeping.check_out_dir(out)
+    if not quiet:
+        console.print(f"sweep: {len(points)} runs ({len(plan.combinations())} parameter combinations x "
+                      f"{len(plan.sources)} scenario(s) x {seeds} seed(s)) into {out}", highlight=False)
+    progress = SweepProgress(console, quiet)
+    try:
+        with progress:
+            result = sweeping.run_sweep(plan, out, workers=workers, backend=backend, address=address, lean=lean,
+                                        retry_failed=retry_failed, points=points, on_start=progress.start, on_row=progress.row)
+    except KeyboardInterrupt:
+        errors.print(f"[bold yellow]stopped:[/] sweep interrupted; the finished runs are in {out}/results.parquet; "
+                     "the same command completes it", highlight=False, soft_wrap=True)
+        raise typer.Exit(130) from None
+    except (ValueError, OSError) as exc:
+        errors.print(f"[bold red]error:[/] {one_line(exc)}", highlight=False, soft_wrap=True)
+        raise typer.Exit(2) from None
+    written = sweeping.write_plots(result, plan, objective, plot)
+    console.print(summary(result, plan, objective, not maximize, written), highlight=False)
+    raise typer.Exit(1 if result.failed else 0)
+
+
 @scenarios_app.command("list")
 def scenarios_list() -> None:
     """Names and one-line descriptions of the library's scenarios."""

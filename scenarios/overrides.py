@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import copy
+import json
+import re
 import tomllib
 
 
@@ -53,3 +55,23 @@ def _list_index(items: list, part: str, where: str, key: str) -> int:
         return int(part)
     ids = [str(item.get("id")) for item in items if isinstance(item, dict)]
     raise ValueError(f"--set {key}: no entry {part!r} in {where} (ids: {', '.join(ids) or 'none'})")
+
+
+def assignment(key: str, value) -> str:
+    """The 'key=value' override that sets `key` to exactly `value` (floats round-trip through TOML)."""
+    return f"{key}={to_toml(value)}"
+
+
+def to_toml(value) -> str:
+    """A value as one line of TOML: tables inline, floats in their shortest round-trip form."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_key(k)} = {to_toml(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(to_toml(v) for v in value) + "]"
+    import tomli_w
+
+    return tomli_w.dumps({"v": value}).partition("=")[2].strip()
+
+
+def _key(key: str) -> str:
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)

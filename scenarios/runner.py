@@ -35,6 +35,8 @@ from scenarios.record import Recorder, RunRecord, nan_pose
 from scenarios.spec import Scenario
 from scenarios.stream import ScanEvent, events
 
+RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
+"""The numbers of metrics.json's `run` node (besides scenario, scenario_hash, lanes and failures)."""
 LOOKAHEAD_SCANS = 1
 """Scans simulated ahead of the one being matched (the overlap of simulation and matching)."""
 

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from scenarios.atomic import atomic_path
+from scenarios.workers import raise_terminated, stop
 
 
 @dataclass
@@ -36,18 +37,10 @@ class CaseResult:
         return not self.error and all(e["pass"] for e in self.expectations)
 
 
-class _Terminated(BaseException):
-    """SIGTERM from the suite (time-out or Ctrl-C): unwind so the run removes its temporary directory."""
-
-
-def _raise_terminated(signum, frame) -> None:
-    raise _Terminated
-
-
 def _run_case(index: int, source: str, fast: bool, out_dir: str, workers: int, results) -> None:
     """Child process: load, run and report back one scenario (never raises)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the suite's to handle; it terminates us
-    signal.signal(signal.SIGTERM, _raise_terminated)
+    signal.signal(signal.SIGTERM, raise_terminated)
     start = time.perf_counter()
     try:
         from scenarios.library import load
@@ -102,23 +95,14 @@ def run_suite(
                                       error=f"scenario process died (exit code {proc.exitcode})")
                     _finish(done, index, case, on_done)
                 elif elapsed > timeout_s:
-                    _stop(proc)
+                    stop(proc)
                     running.pop(index)
                     case = CaseResult(Path(source).stem, str(out_dir / Path(source).stem), elapsed, error=f"timed out after {timeout_s:g} s")
                     _finish(done, index, case, on_done)
     finally:
         for proc, _, _ in running.values():
-            _stop(proc)
+            stop(proc)
     return [done[i] for i in sorted(done)]
-
-
-def _stop(proc: mp.Process, grace_s: float = 30.0) -> None:
-    """SIGTERM (the run unwinds and cleans up), then SIGKILL if it has not ended within grace_s."""
-    proc.terminate()
-    proc.join(grace_s)
-    if proc.is_alive():
-        proc.kill()
-        proc.join()
 
 
 def _finish(done: dict, index: int, case: CaseResult, on_done) -> None:

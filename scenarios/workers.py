@@ -1,0 +1,113 @@
+"""A pool of long-lived worker processes for sweeps: imports are paid once per worker, not per run.
+
+Each worker runs one job at a time. A job that raises comes back as a failure with its reason; a
+worker that dies (a crash, the OOM killer) fails the job it held and is replaced; on Ctrl-C or any
+error in the caller the workers get SIGTERM, which unwinds a run so it removes its temporary files.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import signal
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
+
+
+class Terminated(BaseException):
+    """SIGTERM from the parent (time-out, Ctrl-C): unwind so a run removes its temporary directory."""
+
+
+def raise_terminated(signum, frame) -> None:
+    raise Terminated
+
+
+def stop(proc: mp.Process, grace_s: float = 30.0) -> None:
+    """SIGTERM (a run unwinds and cleans up), then SIGKILL if it has not ended within grace_s."""
+    proc.terminate()
+    proc.join(grace_s)
+    if proc.is_alive():
+        proc.kill()
+        proc.join()
+
+
+@dataclass
+class JobResult:
+    """What came back for job `index`: its value, or why it failed."""
+
+    index: int
+    ok: bool
+    value: object = None
+    error: str = ""
+
+
+def _serve(conn: Connection) -> None:
+    """Worker loop: receive (function, argument), send back (True, value) or (False, reason); None ends it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle; it terminates us
+    signal.signal(signal.SIGTERM, raise_terminated)
+    while (job := conn.recv()) is not None:
+        fn, arg = job
+        try:
+            conn.send((True, fn(arg)))
+        except Exception as exc:  # the job's failure, reported; the worker serves on
+            conn.send((False, f"{type(exc).__name__}: {exc}"))
+
+
+@dataclass
+class _Worker:
+    proc: mp.Process
+    conn: Connection
+    job: int | None = None
+
+    @staticmethod
+    def spawn(ctx) -> "_Worker":
+        parent, child = ctx.Pipe()
+        proc = ctx.Process(target=_serve, args=(child,), daemon=False)  # not a daemon: a run may start its own workers
+        proc.start()
+        child.close()
+        return _Worker(proc, parent)
+
+
+def run_jobs(fn: Callable, args: list, workers: int) -> Iterator[JobResult]:
+    """Run fn(arg) for every arg on `workers` processes; yield each result as it finishes.
+
+    fn must be importable (spawned workers unpickle it by name). Closing the iterator early (or an
+    exception in the caller) stops the workers.
+    """
+    ctx = mp.get_context("spawn")
+    pending = deque(enumerate(args))
+    pool = [_Worker.spawn(ctx) for _ in range(min(workers, len(args)))]
+    try:
+        while pending or any(w.job is not None for w in pool):
+            for i, w in enumerate(pool):
+                if w.job is None and pending:
+                    if not w.proc.is_alive():
+                        pool[i] = w = _Worker.spawn(ctx)
+                    w.job, arg = pending.popleft()
+                    w.conn.send((fn, arg))
+            busy = [w for w in pool if w.job is not None]
+            wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout=1.0)
+            for i, w in enumerate(pool):
+                if w.job is None:
+                    continue
+                if w.conn.poll():
+                    try:
+                        ok, value = w.conn.recv()
+                    except (EOFError, OSError):
+                        ok, value = False, "worker process died"
+                    index, w.job = w.job, None
+                    yield JobResult(index, True, value) if ok else JobResult(index, False, error=value)
+                elif not w.proc.is_alive():  # replaced when it is next given a job
+                    index, w.job = w.job, None
+                    yield JobResult(index, False, error=f"worker process died (exit code {w.proc.exitcode})")
+    finally:
+        for w in pool:
+            if w.job is not None or not w.proc.is_alive():
+                stop(w.proc)
+            else:
+                w.conn.send(None)
+        for w in pool:
+            w.proc.join(10.0)
+            if w.proc.is_alive():
+                stop(w.proc)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from scenarios.errors import one_line
@@ -25,7 +26,7 @@ def user_errors() -> Iterator[None]:
     try:
         yield
     except (ValueError, KeyError, OSError, TypeError) as exc:
-        errors.print(f"[bold red]error:[/] {one_line(exc)}", highlight=False, soft_wrap=True)
+        errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
 
 
@@ -119,13 +120,13 @@ def run(
         with RunProgress(spec.name, console, quiet) as progress:
             result = scenarios.run(spec, out, workers=workers, report=not no_report, progress=progress.update)
     except RunInterrupted as exc:
-        errors.print(f"[bold yellow]stopped:[/] {exc}", highlight=False, soft_wrap=True)
+        errors.print(f"[bold yellow]stopped:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None
     except RunFailed as exc:
-        errors.print(f"[bold red]run failed:[/] {exc}", highlight=False, soft_wrap=True)
+        errors.print(f"[bold red]run failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
     except (ValueError, OSError) as exc:
-        errors.print(f"[bold red]error:[/] {one_line(exc)}", highlight=False, soft_wrap=True)
+        errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
     if not quiet:
         console.print(run_table(result))
@@ -241,7 +242,7 @@ def sweep(
                      "the same command completes it", highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None
     except (ValueError, OSError) as exc:
-        errors.print(f"[bold red]error:[/] {one_line(exc)}", highlight=False, soft_wrap=True)
+        errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
         raise typer.Exit(2) from None
     written = sweeping.write_plots(result, plan, objective, plot)
     console.print(summary(result, plan, objective, not maximize, written), highlight=False)

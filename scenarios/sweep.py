@@ -9,6 +9,7 @@ table was written, is not run again; a failed run is a row with its reason and t
 from __future__ import annotations
 
 import json
+import shutil
 import statistics
 import time
 import warnings
@@ -109,6 +110,7 @@ def run_sweep(
         else:
             todo.append(point)
     write_plan(out_dir, plan)
+    remove_stale_temporaries(out_dir)
     order = [p.hash for p in points]
 
     def save() -> list[dict]:
@@ -160,6 +162,12 @@ def recover(out_dir: Path, point: SweepPoint) -> dict | None:
     if metrics.get("run", {}).get("scenario_hash") != point.hash:
         return None
     return table.row(point, "ok", metrics["run"].get("wall_s"), f"{RUNS}/{point.run_name}", metrics)
+
+
+def remove_stale_temporaries(out_dir: Path) -> None:
+    """Remove what a killed sweep's runs left half-written (hidden temporary directories in runs/)."""
+    for stale in (out_dir / RUNS).glob(".*"):
+        shutil.rmtree(stale, ignore_errors=True)
 
 
 def check_out_dir(out_dir: Path) -> None:

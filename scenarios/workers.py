@@ -69,6 +69,21 @@ class _Worker:
         return _Worker(proc, parent)
 
 
+def _give(ctx, worker: _Worker, index: int, job: tuple) -> _Worker:
+    """Send a job to the worker, or to a fresh one if it has died; returns the worker that holds it."""
+    if worker.proc.is_alive():
+        try:
+            worker.conn.send(job)
+            worker.job = index
+            return worker
+        except (BrokenPipeError, OSError):
+            stop(worker.proc)
+    fresh = _Worker.spawn(ctx)
+    fresh.conn.send(job)
+    fresh.job = index
+    return fresh
+
+
 def run_jobs(fn: Callable, args: list, workers: int) -> Iterator[JobResult]:
     """Run fn(arg) for every arg on `workers` processes; yield each result as it finishes.
 
@@ -82,10 +97,8 @@ def run_jobs(fn: Callable, args: list, workers: int) -> Iterator[JobResult]:
         while pending or any(w.job is not None for w in pool):
             for i, w in enumerate(pool):
                 if w.job is None and pending:
-                    if not w.proc.is_alive():
-                        pool[i] = w = _Worker.spawn(ctx)
-                    w.job, arg = pending.popleft()
-                    w.conn.send((fn, arg))
+                    index, arg = pending.popleft()
+                    pool[i] = _give(ctx, w, index, (fn, arg))
             busy = [w for w in pool if w.job is not None]
             wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout=1.0)
             for i, w in enumerate(pool):
@@ -94,8 +107,9 @@ def run_jobs(fn: Callable, args: list, workers: int) -> Iterator[JobResult]:
                 if w.conn.poll():
                     try:
                         ok, value = w.conn.recv()
-                    except (EOFError, OSError):
-                        ok, value = False, "worker process died"
+                    except (EOFError, OSError):  # it died: its end of the pipe closed
+                        w.proc.join()
+                        ok, value = False, f"worker process died (exit code {w.proc.exitcode})"
                     index, w.job = w.job, None
                     yield JobResult(index, True, value) if ok else JobResult(index, False, error=value)
                 elif not w.proc.is_alive():  # replaced when it is next given a job

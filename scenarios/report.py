@@ -91,6 +91,7 @@ class Column:
     fmt: Callable[[float | None], str]
     better: str | None = "low"  # "low", "high", or None (not ranked)
     text: bool = False  # words, not numbers: left-aligned
+    detail: Callable[[dict], str] | None = None  # printed after the value (e.g. its spread over seeds), not ranked
 
 
 @dataclass(frozen=True)
@@ -309,7 +310,8 @@ def ranked_table(first: str, nodes: dict[str, dict], columns: list[Column], labe
     texts = {c.title: {k: c.fmt(c.value(n)) for k, n in nodes.items()} for c in columns}
     best = {c.title: _best_text(c, nodes) for c in columns}
     rows = [[Cell(labels[k], css="fail" if n.get("failed") else "")]
-            + [Cell(texts[c.title][k], bold=texts[c.title][k] == best[c.title], css="text" if c.text else "") for c in columns]
+            + [Cell(texts[c.title][k] + (c.detail(n) if c.detail else ""), bold=texts[c.title][k] == best[c.title], css="text" if c.text else "")
+               for c in columns]
             for k, n in nodes.items()]
     return Table([first, *(c.title for c in columns)], rows, note)
 

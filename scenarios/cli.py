@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -181,6 +182,10 @@ def suite(
     raise typer.Exit(1 if failed else 0)
 
 
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
 @app.command()
 def sweep(
     scenario: list[str] = typer.Argument(..., help="library names or .toml paths; every point runs on each"),
@@ -233,6 +238,7 @@ def sweep(
         console.print(f"sweep: {len(points)} runs ({len(plan.combinations())} parameter combinations x "
                       f"{len(plan.sources)} scenario(s) x {seeds} seed(s)) into {out}", highlight=False)
     progress = SweepProgress(console, quiet)
+    signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops a sweep as Ctrl-C does: workers stopped, table consistent
     try:
         with progress:
             result = sweeping.run_sweep(plan, out, workers=workers, backend=backend, address=address, lean=lean,
@@ -247,6 +253,27 @@ def sweep(
     written = sweeping.write_plots(result, plan, objective, plot)
     console.print(summary(result, plan, objective, not maximize, written), highlight=False)
     raise typer.Exit(1 if result.failed else 0)
+
+
+@app.command()
+def report(
+    dirs: list[Path] = typer.Argument(..., help="run directories, suite or sweep outputs, or any directory holding run directories"),
+    out: Path = typer.Option(None, help="report directory (default runs/report-<UTC time>/)"),
+    quiet: bool = typer.Option(False, "--quiet", help="print only the report's path"),
+) -> None:
+    """Compare estimators and matchers over runs: report.md and a self-contained report.html, ranked per scenario."""
+    from datetime import datetime, timezone
+
+    from scenarios import compare
+
+    out = out or Path("runs") / f"report-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+    with user_errors():
+        if out.exists() and any(out.iterdir()):
+            raise ValueError(f"output directory {out} exists and is not empty")
+        page = compare.write(list(dirs), out)
+    if not quiet:
+        console.print(compare.summary_markdown(list(dirs)), highlight=False, markup=False)
+    console.print(f"wrote {page}", highlight=False)
 
 
 @scenarios_app.command("list")

@@ -111,7 +111,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
                        rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
     t_start, t_end = scenario.stretch.times(trajectory)
-    estimators = {e.id: e.build() for e in scenario.estimators}
+    estimators = {e.id: e.build(scenario.seed) for e in scenario.estimators}
     feeds = {e.id: e.matcher for e in scenario.estimators}
     recorder = Recorder([m.id for m in scenario.matchers], list(estimators), trajectory.mount)
     dead: set[str] = set()

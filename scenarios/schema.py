@@ -13,7 +13,7 @@ import worlds
 from scenarios.spec import Scenario
 from worlds.presets import PRESETS
 
-_SET_ON_THE_ESTIMATOR = ("matcher", "monitor", "monitor_params")  # EstimatorSpec fields, not params
+_SET_ON_THE_ESTIMATOR = ("matcher", "monitor", "monitor_params", "seed")  # EstimatorSpec fields or the scenario seed, not params
 
 
 def _add_model(defs: dict, model: type[BaseModel], drop: tuple[str, ...] = ()) -> dict:

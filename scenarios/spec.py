@@ -117,18 +117,21 @@ class EstimatorSpec(BaseModel):
         for key in ("matcher", "monitor", "monitor_params"):
             if key in self.params:
                 raise ValueError(f"{where}: set {key!r} on the estimator, not in its params")
+        if "seed" in self.params:
+            raise ValueError(f"{where}: params.seed: every component takes the scenario's top-level seed; set 'seed' there")
         monitor = self.monitor or model.model_fields["monitor"].default
         monitor_model = fusion.monitors.params_model(monitor)
         self.monitor_params = _validated(monitor_model, self.monitor_params, f"{where} monitor {monitor!r}")
         self.monitor = monitor
         full = _validated(model, {**self.params, "monitor": monitor, "monitor_params": self.monitor_params}, where)
-        self.params = {k: v for k, v in full.items() if k not in ("matcher", "monitor", "monitor_params")}
+        self.params = {k: v for k, v in full.items() if k not in ("matcher", "monitor", "monitor_params", "seed")}
         return self
 
-    def build(self):
-        """A fresh fusion Estimator with these settings."""
+    def build(self, seed: int):
+        """A fresh fusion Estimator with these settings; a random one (pf) draws from the scenario's seed."""
+        seeded = {"seed": seed} if "seed" in fusion.params_model(self.kind).model_fields else {}
         return fusion.create(self.kind, matcher=self.matcher or "none", monitor=self.monitor,
-                             monitor_params=self.monitor_params, **self.params)
+                             monitor_params=self.monitor_params, **self.params, **seeded)
 
 
 class Control(BaseModel):

@@ -151,3 +151,17 @@ def test_schema_types_every_section_and_each_kinds_params():
         data = {"matchers": [bad_matcher or good["matchers"][0]], "estimators": [bad_estimator or good["estimators"][0]]}
         assert not check.is_valid(data), data
     assert not check.is_valid({"world": "open_river", "world_params": {"no_such_parameter": 1}})
+
+
+def test_a_random_estimator_draws_from_the_scenario_seed_and_refuses_its_own():
+    import numpy as np
+
+    draws = []
+    for seed in (0, 0, 1):
+        scenario = scenarios.load("open_river", seed=seed)
+        pf = next(e for e in scenario.estimators if e.kind == "pf")
+        assert "seed" not in pf.params and "seed" not in scenario.resolved()["estimators"][3]["params"]
+        draws.append(pf.build(scenario.seed).rng.random(4))
+    assert np.array_equal(draws[0], draws[1]) and not np.array_equal(draws[0], draws[2])
+    with pytest.raises(ValueError, match="params.seed: every component takes the scenario's top-level seed"):
+        scenarios.load("open_river", set=["estimators.pf.params.seed=3"])

@@ -272,8 +272,9 @@ def report(
             raise ValueError(f"output directory {out} exists and is not empty")
         page = compare.write(list(dirs), out)
     if not quiet:
-        console.print(compare.summary_markdown(list(dirs)), highlight=False, markup=False)
-    console.print(f"wrote {page}", highlight=False)
+        for sentence in compare.summary_sentences(list(dirs)):
+            console.print(sentence, highlight=False, markup=False)
+    console.print(f"wrote {page} and report.md", highlight=False)
 
 
 @scenarios_app.command("list")

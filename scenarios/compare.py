@@ -187,6 +187,11 @@ def summary_markdown(sources: list[Path]) -> str:
     return report.to_markdown(summary_blocks(configurations(collect(sources))))
 
 
+def summary_sentences(sources: list[Path]) -> list[str]:
+    """The written summary over every configuration: who wins where, and whether by more than the spread."""
+    return overall_sentences(configurations(collect(sources)))
+
+
 # ---- finding and reading runs -----------------------------------------------------------------------
 
 def find(sources: list[Path]) -> tuple[list[Path], list[Path]]:
@@ -593,11 +598,25 @@ FAILURE_COLUMN = Column("failure rate", lambda n: n["failures"] / n["runs"] if n
 
 
 def cross_table(first: str, confs: list[Configuration], kind: str, base: Column) -> Table:
-    """A row per component id, a column per configuration: the base metric's median over seeds with its range, best in bold."""
+    """A row per configuration, a column per component id: the base metric's median over seeds with its range; the
+    row's best in bold (who wins where reads along a row)."""
     ids = list(dict.fromkeys(cid for c in confs for cid in getattr(c, kind)))
-    nodes = {cid: {c.title: getattr(c, kind).get(cid, {}) for c in confs} for cid in ids}
-    columns = [spread_column(c.title, base, lambda n, t=c.title: n[t], failures=True) for c in confs]
-    return report.ranked_table(first, nodes, columns, {cid: cid for cid in ids}, SPREAD_NOTE)
+    rows = []
+    for conf in confs:
+        nodes = getattr(conf, kind)
+        spreads = {cid: nodes.get(cid, {}).get(base.title) for cid in ids}
+        medians = {cid: s.median for cid, s in spreads.items() if s is not None and s.median == s.median}
+        texts = {cid: base.fmt(medians.get(cid)) for cid in ids}
+        best = None
+        if base.better and len(set(texts[c] for c in medians)) > 1:
+            best = texts[(min if base.better == "low" else max)(medians, key=medians.get)]
+        cells = [report.Cell(conf.title, css="text")]
+        for cid in ids:
+            node = nodes.get(cid, {})
+            failed = f" [{node['failures']} of {node['runs']} runs failed]" if node.get("failures") else ""
+            cells.append(report.Cell(texts[cid] + spread_text(spreads[cid], base.fmt) + failed, bold=texts[cid] == best))
+        rows.append(cells)
+    return Table(["scenario", *ids], rows, SPREAD_NOTE.replace("best median in its column", "best median in its row"))
 
 
 def conf_section(conf: Configuration, images: dict[str, str]) -> list:

@@ -174,10 +174,11 @@ def recall_at(statistic: np.ndarray, faulty: np.ndarray, max_fa: float) -> float
 def matcher_metrics(rec: RunRecord, mid: str) -> dict:
     """success: share of scans after the first whose match is usable (gated scans count as not);
     gated: share of all scans the point-count gate dropped; degenerate: share of usable matches
-    with an unobserved direction; hz and ms from the wall time per registered scan."""
+    with an unobserved direction; hz and ms from the wall time per registered scan (not gated, not the first)."""
     m = rec.matches[mid]
     attempts = np.arange(len(m.ok)) > 0  # the first scan has nothing to match against
-    seconds = m.seconds[attempts] if attempts.any() else m.seconds
+    registered = attempts & ~m.gated  # a gated scan is dropped before registration: it costs nothing
+    seconds = m.seconds[registered]
     aligned = align_se2(m.pose, rec.truth)
     out = {
         "success": float(m.ok[attempts].mean()) if attempts.any() else math.nan,

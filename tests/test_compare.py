@@ -188,14 +188,19 @@ def test_labels_leave_out_keys_that_follow_from_another_unless_needed():
 
 # ---- numbers, ranking, failures ------------------------------------------------------------------------
 
-def test_summary_table_prints_medians_and_ranges_best_in_bold(tree):
+def test_summary_table_prints_medians_and_ranges_best_in_each_row(tree):
     text = compare.summary_markdown([tree])
-    assert row(text, "estimator") == ["estimator", *TITLES]
-    assert row(text, "ekf")[1:] == ["**2.80 (2.60–3.10)**", "**3.20 (3.00–3.40)**", "**3.50 (3.00–4.00)**", "4.10 (4.00–4.20)"]
-    assert row(text, "pf")[1:] == ["7.50 (7.20–7.90)", "8.25 (8.00–8.50) [1 of 3 runs failed]", "3.60 (3.20–4.40)", "**4.00 (3.90–5.00)**"]
-    assert row(text, "gps_only")[1] == "11.00 (10.00–12.00)"
-    assert row(text, "icp", 0)[1:] == ["**98.0 % (97.0 %–99.0 %)**"] * 3 + ["**98.0 % (97.0 %–99.0 %) [1 of 3 runs failed]**"]
-    assert row(text, "bev", 2)[1] == "**110.0 (100.0–120.0)**"  # speed: bev the faster
+    assert row(text, "scenario") == ["scenario", "gps_only", "ekf", "pf"]
+    assert [row(text, t)[2:] for t in TITLES] == [
+        ["**2.80 (2.60–3.10)**", "7.50 (7.20–7.90)"],
+        ["**3.20 (3.00–3.40)**", "8.25 (8.00–8.50) [1 of 3 runs failed]"],
+        ["**3.50 (3.00–4.00)**", "3.60 (3.20–4.40)"],
+        ["4.10 (4.00–4.20)", "**4.00 (3.90–5.00)**"],  # pf wins canal at 0.05 on the median
+    ]
+    assert row(text, TITLES[0])[1] == "11.00 (10.00–12.00)"
+    assert row(text, "scenario", 1) == ["scenario", "icp", "bev"]
+    assert row(text, TITLES[3], 1)[1:] == ["**98.0 % (97.0 %–99.0 %) [1 of 3 runs failed]**", "85.0 % (80.0 %–90.0 %)"]
+    assert row(text, TITLES[0], 3)[1:] == ["22.0 (20.0–24.0)", "**110.0 (100.0–120.0)**"]  # speed: bev the faster
 
 
 def test_per_configuration_tables_with_failure_rates_and_monitor_scores(written):
@@ -238,7 +243,7 @@ def test_one_seed_leaves_the_spread_unknown(tree, tmp_path):
     text = (out / "report.md").read_text()
     assert "1 run · 1 scenario (bridge) · 1 configuration · seeds 1" in text
     assert "Lowest APE p95: ekf 2.80 m (1 seed) against pf 7.50 m (1 seed): the spread is unknown (one seed)." in text
-    assert row(text, "ekf")[1] == "**2.80**"
+    assert row(text, "bridge")[2] == "**2.80**"
 
 
 def test_an_estimator_failing_in_every_run_prints_dashes(tree, tmp_path):
@@ -249,7 +254,7 @@ def test_an_estimator_failing_in_every_run_prints_dashes(tree, tmp_path):
     (run / "metrics.json").write_text(json.dumps(metrics))
     compare.write([run], tmp_path / "out")
     text = (tmp_path / "out" / "report.md").read_text()
-    assert row(text, "ekf")[1] == "– [1 of 1 runs failed]"
+    assert row(text, "bridge")[2] == "– [1 of 1 runs failed]"
     assert "Lowest APE p95: pf 7.20 m (1 seed) against gps_only 10.00 m (1 seed)" in text
 
 

@@ -164,11 +164,11 @@ CRITERIA = (
 def write(sources: list[Path], out_dir: Path) -> Path:
     """Write report.md, report.html (self-contained, images embedded as data: URIs) and plots/*.png into out_dir; return report.html."""
     out_dir = Path(out_dir)
-    run_dirs, suite_files = find(sources)
+    run_dirs, listings = find(sources)
     if (out_dir / "metrics.json").exists():
         raise ValueError(f"{out_dir}: is a run directory (its own report would be replaced); write the comparison elsewhere")
     confs = configurations([read_run(p) for p in run_dirs])
-    stopped = unfinished(suite_files)
+    stopped = unfinished(listings)
     with atomic_dir(out_dir) as tmp:
         images = draw_rocs(confs, tmp)
         blocks = build(confs, images, stopped, out_dir)
@@ -195,11 +195,11 @@ def summary_sentences(sources: list[Path]) -> list[str]:
 # ---- finding and reading runs -----------------------------------------------------------------------
 
 def find(sources: list[Path]) -> tuple[list[Path], list[Path]]:
-    """The run directories and suite.json files under the sources, in path order, hidden directories skipped."""
+    """The run directories, and the suite.json and sweep results.parquet files, under the sources, in path order, hidden directories skipped."""
     if not sources:
         raise ValueError("no run, suite or sweep directory given")
     run_dirs: list[Path] = []
-    suite_files: list[Path] = []
+    listings: list[Path] = []
     for source in map(Path, sources):
         if not source.exists():
             raise ValueError(f"{source}: no such file or directory")
@@ -212,11 +212,13 @@ def find(sources: list[Path]) -> tuple[list[Path], list[Path]]:
                 found.append(Path(root))
                 dirs[:] = []  # a run directory holds no runs
             elif "suite.json" in files:
-                suite_files.append(Path(root) / "suite.json")
+                listings.append(Path(root) / "suite.json")
+            elif "results.parquet" in files and "sweep.json" in files:
+                listings.append(Path(root) / "results.parquet")
         if not found:
             raise ValueError(f"{source}: no run directory (one with metrics.json and scenario.toml) in it or below it")
         run_dirs += found
-    return _unique(run_dirs), _unique(suite_files)
+    return _unique(run_dirs), _unique(listings)
 
 
 def _unique(paths: list[Path]) -> list[Path]:
@@ -252,10 +254,19 @@ def _read(file: Path, parse: Callable[[str], object], what: str, kind: type):
     return tree
 
 
-def unfinished(suite_files: list[Path]) -> list[Unfinished]:
-    """The suite cases that ended with an error (they left no run directory to compare)."""
-    return [Unfinished(str(case.get("name", NULL)), str(case["error"]), f)
-            for f in suite_files for case in _read(f, json.loads, "JSON", list) if isinstance(case, dict) and case.get("error")]
+def unfinished(listings: list[Path]) -> list[Unfinished]:
+    """The suite cases and sweep runs that failed (they left no run directory to compare)."""
+    out = []
+    for f in listings:
+        if f.name == "results.parquet":
+            from scenarios import sweep_table
+
+            out += [Unfinished(f"{r['scenario']} (seed {r['seed']})", str(r.get("reason") or r["status"]), f)
+                    for r in sweep_table.read(f.parent) if r.get("status") != "ok"]
+        else:
+            out += [Unfinished(str(case.get("name", NULL)), str(case["error"]), f)
+                    for case in _read(f, json.loads, "JSON", list) if isinstance(case, dict) and case.get("error")]
+    return out
 
 
 # ---- grouping ---------------------------------------------------------------------------------------
@@ -678,7 +689,7 @@ def roc_blocks(conf: Configuration, images: dict[str, str]) -> list:
 
 
 def unfinished_section(stopped: list[Unfinished], out_dir: Path) -> list:
-    """Suite cases that left no run directory (none: no section)."""
+    """Suite cases and sweep runs that left no run directory (none: no section)."""
     if not stopped:
         return []
     rows = [[Cell(u.scenario, css="fail"), Cell(u.reason, css="text"), Cell(_relative(u.suite_file, out_dir), css="text")] for u in stopped]

@@ -196,6 +196,11 @@ def test_a_failed_run_is_a_row_with_its_reason_and_the_sweep_goes_on(tmp_path):
     assert again.ran == 0
     retried = sweeping.run_sweep(plan, tmp_path / "s", workers=2, lean=True, retry_failed=True)
     assert retried.ran == 1 and retried.rows[1]["status"] == "failed"
+    from scenarios import compare  # the comparison report lists the failed run, which left no run directory
+
+    compare.write([tmp_path / "s"], tmp_path / "report")
+    text = (tmp_path / "report" / "report.md").read_text()
+    assert "## Runs that did not finish" in text and "| **canal_multipath (seed 0)** | ValueError: stretch:" in text
 
 
 def test_ranking_takes_the_median_over_seeds():
@@ -306,3 +311,4 @@ def test_table_flattening_counts_lists_and_keeps_nulls():
                                 "expectations": [{"pass": True}, {"pass": False}, {"pass": True}]})
     assert flat == {"run.wall_s": 1.5, "run.failures": 1, "estimators.ekf.ape.p95": None, "estimators.ekf.failed": False,
                     "expectations.passed": 2, "expectations.failed": 1}
+

@@ -76,8 +76,8 @@ def main() -> None:
             total, walls = timed_sweep(p, backend, workers)
             totals.append(total)
             per_run += walls
-        results[(backend, workers)] = statistics.median(totals)
-        print(f"{backend:5s} workers {workers}: {statistics.median(totals):6.1f} s total, {60 * n / statistics.median(totals):5.1f} runs/min, "
+        results[(backend, workers)] = total = statistics.median(totals)
+        print(f"{backend:5s} workers {workers}: {total:6.1f} s total, {60 * n / total:5.1f} runs/min, "
               f"a run inside: median {statistics.median(per_run):.1f} s (min {min(per_run):.1f}, max {max(per_run):.1f})")
     local1, local2, ray2 = results[("local", 1)], results[("local", 2)], results[("ray", 2)]
     print(f"speed-up of 2 local workers over 1: {local1 / local2:.2f}x")

@@ -30,7 +30,8 @@ def main(out: Path) -> None:
                        on_row=lambda r: print(f"{r['status']}: voxel {r['param.matchers.gicp.params.voxel_m']} m, seed {r['seed']}, "
                                               f"ekf blackout max {r.get(OBJECTIVE, float('nan')):.2f} m"))
     for group in rank(result.rows, OBJECTIVE):
-        print(f"voxel {group.params['matchers.gicp.params.voxel_m']} m: median {group.median:.2f} m, seeds: {', '.join(f'{v:.2f}' for v in group.values)}")
+        seeds = ", ".join(f"{v:.2f}" for v in group.values)
+        print(f"voxel {group.params['matchers.gicp.params.voxel_m']} m: median {group.median:.2f} m (seeds: {seeds})")
     page = compare.write([out / "sweep"], out / "report")
     print("\n".join(compare.summary_sentences([out / "sweep"])))
     print(f"results: {out / 'sweep' / 'results.parquet'}; report: {page}")

@@ -112,9 +112,11 @@ def run_sweep(
     write_plan(out_dir, plan)
     remove_stale_temporaries(out_dir)
     order = [p.hash for p in points]
+    planned = set(order)
 
     def save() -> list[dict]:
-        ordered = [rows[h] for h in order if h in rows] + [r for h, r in rows.items() if h not in set(order)]
+        """Rewrite the table: this plan's rows in plan order, then rows of earlier plans in the same directory."""
+        ordered = [rows[h] for h in order if h in rows] + [r for h, r in rows.items() if h not in planned]
         table.write(out_dir, ordered)
         return ordered
 
@@ -126,7 +128,7 @@ def run_sweep(
     try:
         for result in results:
             point = jobs[result.index].point
-            rows[point.hash] = _row(out_dir, point, result)
+            rows[point.hash] = _row(point, result)
             save()
             if on_row is not None:
                 on_row(rows[point.hash])
@@ -143,7 +145,7 @@ def _backend(backend: str, jobs: list[Job], workers: int, address: str | None) -
     return run_jobs(run_job, jobs, workers)
 
 
-def _row(out_dir: Path, point: SweepPoint, result: JobResult) -> dict:
+def _row(point: SweepPoint, result: JobResult) -> dict:
     """The table row of a backend's result (a job that could not even report is a failed run)."""
     if not result.ok:
         return table.row(point, "failed", float("nan"), "", reason=result.error)

@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 
 from scenarios import compare
+from scenarios.compare import groups
+from scenarios.compare.runs import RunInfo
 
 NOISES = (0.02, 0.05)
 SEEDS = (0, 1, 2)
@@ -159,17 +161,17 @@ def test_runs_are_found_in_sweep_and_suite_layouts_and_hidden_ones_skipped(tree)
 
 
 def test_runs_are_grouped_by_configuration_and_labelled_by_what_differs(tree):
-    confs = compare.configurations(compare.collect([tree]))
+    confs = groups.configurations(compare.collect([tree]))
     assert [c.title for c in confs] == TITLES
     assert all([r.seed for r in c.runs] == list(SEEDS) for c in confs)
 
 
 def test_labels_name_list_tables_by_id():
     base = {"name": "s", "seed": 0, "matchers": [{"id": "gicp", "kind": "gicp", "params": {"voxel_m": 0.3}}], "expect": ["x < 1"]}
-    assert compare.flatten(base) == {"name": "s", "seed": 0, "matchers.gicp.kind": "gicp", "matchers.gicp.params.voxel_m": 0.3, "expect": ["x < 1"]}
-    runs = [compare.RunInfo(Path(f"/nowhere/{v}-{seed}"), "s", seed, "", {**base, "seed": seed, "matchers": [
+    assert groups.flatten(base) == {"name": "s", "seed": 0, "matchers.gicp.kind": "gicp", "matchers.gicp.params.voxel_m": 0.3, "expect": ["x < 1"]}
+    runs = [RunInfo(Path(f"/nowhere/{v}-{seed}"), "s", seed, "", {**base, "seed": seed, "matchers": [
         {"id": "gicp", "kind": "gicp", "params": {"voxel_m": v}}]}, {"run": {}}) for v in (1.0, 0.5) for seed in (0, 1)]
-    confs = compare.configurations(runs)
+    confs = groups.configurations(runs)
     assert [c.title for c in confs] == ["s (matchers.gicp.params.voxel_m=0.5)", "s (matchers.gicp.params.voxel_m=1.0)"]
     assert [len(c.runs) for c in confs] == [2, 2]
 
@@ -178,12 +180,12 @@ def test_labels_leave_out_keys_that_follow_from_another_unless_needed():
     ekf = {"id": "ekf", "kind": "ekf"}
     nis = {"estimators": [{**ekf, "monitor": "nis", "monitor_params": {"gate_prob": 0.999}}]}
     cn0 = {"estimators": [{**ekf, "monitor": "cn0"}]}
-    assert compare.label_keys([compare.flatten(nis), compare.flatten(cn0)]) == ["estimators.ekf.monitor"]
+    assert groups.label_keys([groups.flatten(nis), groups.flatten(cn0)]) == ["estimators.ekf.monitor"]
     one = {"matchers": [{"id": "gicp", "kind": "gicp"}]}
     two = {"matchers": [{"id": "gicp", "kind": "gicp"}, {"id": "kiss", "kind": "kiss_icp"}]}
-    keys = compare.label_keys([compare.flatten(one), compare.flatten(two)])
+    keys = groups.label_keys([groups.flatten(one), groups.flatten(two)])
     assert keys == ["matchers.kiss.kind"]
-    assert compare.label_text(compare.flatten(one), keys) == "matchers.kiss.kind=–"
+    assert groups.label_text(groups.flatten(one), keys) == "matchers.kiss.kind=–"
 
 
 # ---- numbers, ranking, failures ------------------------------------------------------------------------
@@ -261,7 +263,7 @@ def test_an_estimator_failing_in_every_run_prints_dashes(tree, tmp_path):
 # ---- monitor ROC ---------------------------------------------------------------------------------------
 
 def test_roc_pools_the_measured_fixes_of_all_seeds(tree):
-    confs = compare.configurations(compare.collect([tree]))
+    confs = groups.configurations(compare.collect([tree]))
     roc = confs[0].roc
     assert (roc.measured, roc.faulty) == (10, 3)
     assert [c.eid for c in roc.curves] == ["ekf"]  # gps_only and pf have no monitor

@@ -83,7 +83,9 @@ def figure(rows: list[dict], metrics: list[str], param: str, log_x: bool = False
     ax.set_xlabel(param)
     ax.set_ylabel(metrics[0] if len(metrics) == 1 else _common_suffix(metrics))
     hidden = f" ({len(drawn) - MAX_LINES} more lines not drawn)" if len(drawn) > MAX_LINES else ""
-    ax.set_title(f"median over {seeds} seed{'s' * (seeds > 1)}, band: min to max{hidden}", fontsize=10)
+    names = sorted({r["scenario"] for r in rows if r["status"] == "ok"})
+    where = f"{names[0]}: " if len(names) == 1 else ""
+    ax.set_title(f"{where}median over {seeds} seed{'s' * (seeds > 1)}, band: min to max{hidden}", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     return fig

@@ -1,0 +1,88 @@
+"""What every export writes: a scenario's simulated sensor stream, one LiDAR revolution at a time.
+
+A Frame is a revolution with the receiver outputs that fall inside it and the exact poses at its
+stamp. `frames(scenario)` simulates them lazily (no matcher, no estimator), so an export of the
+whole charles_river route streams in constant memory. The same seed gives the same frames as
+`riverbench run` of that scenario.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from datetime import datetime
+
+import numpy as np
+
+import sim
+import worlds
+from scenarios.spec import Scenario
+from scenarios.stream import ScanEvent, events
+from sim.gnss_fix import GnssFix
+from sim.scan import Scan
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One revolution: the scan (points in the lidar frame at their firing times, as the sensor reports
+    them), the true poses world<-base_link and world<-lidar at its stamp, and the fixes with
+    stamp in [this scan's stamp, the next scan's stamp)."""
+
+    index: int
+    scan: Scan
+    base_pose: np.ndarray
+    lidar_pose: np.ndarray
+    fixes: list[GnssFix] = field(default_factory=list)
+
+    @property
+    def stamp(self) -> float:
+        return self.scan.stamp
+
+
+@dataclass(frozen=True)
+class StreamInfo:
+    """What a format needs besides the frames: names, rates, geodesy, time base and the boat's fixed transforms."""
+
+    scenario: str
+    t_start: float
+    t_end: float
+    scans: int
+    lidar_rate_hz: float
+    gnss_rate_hz: float
+    origin: tuple[float, float, float]
+    epoch_utc: datetime
+    mount: np.ndarray
+    antenna_offset_m: tuple[float, float, float]
+
+
+def open_stream(scenario: Scenario) -> tuple[StreamInfo, Iterator[Frame]]:
+    """The stream's description and its frames (simulated lazily, as the iterator is consumed)."""
+    world = worlds.load(scenario.world, **scenario.world_params)
+    trajectory = sim.Trajectory(world, seed=scenario.seed, **scenario.vessel.model_dump(exclude={"seed"}))
+    lidar = sim.HDL32E(seed=scenario.seed, **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
+                       rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
+    receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
+    t_start, t_end = scenario.stretch.times(trajectory)
+    n_scans = int(np.floor((t_end - t_start) / lidar.revolution_s + 1e-9))
+    info = StreamInfo(scenario.name, t_start, t_end, n_scans, scenario.lidar.rate_hz, scenario.gnss.rate_hz,
+                      tuple(world.origin), scenario.gnss.epoch_utc, trajectory.mount.copy(), tuple(scenario.gnss.antenna_offset_m))
+    return info, _frames(world, trajectory, lidar, receiver, t_start, t_end)
+
+
+def _frames(world, trajectory, lidar, receiver, t_start: float, t_end: float) -> Iterator[Frame]:
+    """Group the time-ordered events into frames: each scan with the fixes up to the next scan."""
+    current: Frame | None = None
+    pending: list[GnssFix] = []  # fixes before the first scan go with it
+    for event in events(world, trajectory, lidar, receiver, t_start, t_end):
+        if isinstance(event, ScanEvent):
+            if current is not None:
+                yield current
+            index = 0 if current is None else current.index + 1
+            current = Frame(index, event.scan, trajectory.pose(event.stamp), trajectory.lidar_pose(event.stamp), pending)
+            pending = []
+        elif current is None:
+            pending.append(event.fix)
+        else:
+            current.fixes.append(event.fix)
+    if current is not None:
+        yield current

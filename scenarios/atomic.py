@@ -9,6 +9,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+FILE_MODE = 0o644
+
 
 @contextmanager
 def atomic_path(target: Path) -> Iterator[Path]:
@@ -19,6 +21,7 @@ def atomic_path(target: Path) -> Iterator[Path]:
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, FILE_MODE)  # mkstemp made it private; an output is for everyone to read
         os.replace(tmp, target)
     finally:
         if os.path.exists(tmp):

@@ -277,6 +277,45 @@ def report(
     console.print(f"wrote {page} and report.md", highlight=False)
 
 
+@app.command()
+def export(
+    source: str = typer.Argument(..., help="library name, .toml path or run directory (its scenario.toml)"),
+    format_: str = typer.Option(..., "--format", help="kitti, pcd, ply or pcap"),
+    out: Path = typer.Option(..., help="output directory (kitti, pcd, ply) or file (pcap)"),
+    set_: list[str] = typer.Option([], "--set", help="override a field: key=value (TOML value), repeatable"),
+    seed: int = typer.Option(None, help="the scenario's seed"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """Simulate a scenario's sensor stream and write it in a format other tools read (nothing is written unless complete)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from scenarios import export as exporting
+
+    bar = Progress(TextColumn(f"[bold]export {format_}[/]"), BarColumn(), MofNCompleteColumn(), TextColumn("scans"),
+                   TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=console, disable=quiet)
+    task = bar.add_task("export", total=None)
+
+    def progress(done: int, total: int) -> None:
+        """Show the bar from the first scan on (bad input ends before it, in one line)."""
+        if not bar.live.is_started:
+            bar.start()
+        bar.update(task, completed=done, total=total)
+
+    try:
+        with user_errors():
+            try:
+                result = exporting.export(source, format_, out, set=set_, seed=seed, progress=progress)
+            finally:
+                if bar.live.is_started:
+                    bar.stop()
+    except KeyboardInterrupt:
+        errors.print("[bold yellow]stopped:[/] export interrupted; nothing written", highlight=False)
+        raise typer.Exit(130) from None
+    counts = ", ".join(f"{v:,} {k}" for k, v in result.counts.items())
+    console.print(f"wrote {result.out}: {result.scans} scans{', ' + counts if counts else ''} in {result.seconds:.1f} s "
+                  f"({result.scans / max(result.seconds, 1e-9):.0f} scans/s)", highlight=False)
+
+
 @scenarios_app.command("list")
 def scenarios_list() -> None:
     """Names and one-line descriptions of the library's scenarios."""

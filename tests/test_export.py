@@ -251,3 +251,18 @@ def test_a_file_format_lands_whole_and_is_never_overwritten(tmp_path):
     with pytest.raises(ValueError, match=r"^output .*out.pcap already exists$"):
         export("quickstart", "pcap", tmp_path / "out.pcap", set=ONE_S)
     assert leftovers(tmp_path) == ["out.pcap"]
+
+
+def test_the_export_command_writes_a_pcap_and_refuses_bad_input_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    cli = [sys.executable, "-m", "scenarios.cli", "export", "canal_multipath"]
+    ok = subprocess.run([*cli, "--format", "pcap", "--out", "s.pcap", "--set", "stretch={start_s = 60.0, end_s = 60.5}", "--quiet"],
+                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert ok.returncode == 0, ok.stderr
+    assert "5 scans" in ok.stdout and (tmp_path / "s.pcap").stat().st_mode & 0o777 == 0o644
+    for args, message in ((["--format", "las", "--out", "x"], "unknown export format 'las'"),
+                          (["--format", "pcap", "--out", "s.pcap"], "already exists")):
+        bad = subprocess.run([*cli, *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1 and not bad.stdout.strip()

@@ -7,6 +7,8 @@ Formats (see each module for the exact layout):
     pcd    directory: a binary PCD per scan (x y z intensity ring time), times.txt, poses.txt (pointfiles.py)
     ply    directory: a binary PLY per scan (same fields), times.txt, poses.txt (pointfiles.py)
     pcap   file: the HDL-32E's UDP data packets and GPRMC position packets, as the sensor streams them (pcap.py)
+    rosbag2 directory: a rosbag2 bag, sqlite3 storage: PointCloud2, NavSatFix, NMEA, tf and ground-truth odometry (rosbag.py)
+    mcap   directory: the same rosbag2 bag, MCAP storage (rosbag.py)
 
 Frames are simulated and written one at a time; the output appears at `out` only when complete.
 """
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import scenarios
 from scenarios.atomic import atomic_path
-from scenarios.export import kitti, pcap, pointfiles
+from scenarios.export import kitti, pcap, pointfiles, rosbag
 from scenarios.export.frames import Frame, StreamInfo, open_stream
 
 Writer = Callable[[StreamInfo, Iterable[Frame], Path], dict[str, int]]
@@ -47,6 +49,8 @@ FORMATS: dict[str, Format] = {
     "pcd": Format(pointfiles.write_pcd),
     "ply": Format(pointfiles.write_ply),
     "pcap": Format(pcap.write, directory=False),
+    "rosbag2": Format(rosbag.write_sqlite3),
+    "mcap": Format(rosbag.write_mcap),
 }
 
 

@@ -280,8 +280,8 @@ def report(
 @app.command()
 def export(
     source: str = typer.Argument(..., help="library name, .toml path or run directory (its scenario.toml)"),
-    format_: str = typer.Option(..., "--format", help="kitti, pcd, ply or pcap"),
-    out: Path = typer.Option(..., help="output directory (kitti, pcd, ply) or file (pcap)"),
+    format_: str = typer.Option(..., "--format", help="rosbag2, mcap, kitti, pcd, ply or pcap"),
+    out: Path = typer.Option(..., help="output directory (rosbag2, mcap, kitti, pcd, ply) or file (pcap)"),
     set_: list[str] = typer.Option([], "--set", help="override a field: key=value (TOML value), repeatable"),
     seed: int = typer.Option(None, help="the scenario's seed"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),

@@ -1,6 +1,7 @@
 """Fusion: estimators that fuse GPS fixes with scan-matching odometry, and GPS integrity monitors.
 
-`available()` lists the estimators; `create(name, matcher=..., monitor=..., **params)` builds one.
+`available()` lists the estimators (built-in, then those installed plugins register);
+`create(name, matcher=..., monitor=..., **params)` builds one, `name` also a plugin 'package.module:Class'.
 Filters see only what a real boat logs: the receiver's fixes (position, quality, HDOP...) and
 the matchers' `MatchResult`s; never the simulator's truth.
 """
@@ -15,8 +16,10 @@ from fusion.estimator import Estimator
 from fusion.gps_only import GpsOnly, GpsOnlyParams
 from fusion.hdop_switch import HdopSwitch, HdopSwitchParams
 from fusion.monitors import validate_params
+from fusion.params import BaseEstimatorParams
 from fusion.pf import Pf, PfParams
 from fusion.verdict import Event, Verdict
+from matcher import plugin
 
 _ESTIMATORS: dict[str, tuple[type[Estimator], type[BaseModel]]] = {
     "gps_only": (GpsOnly, GpsOnlyParams),
@@ -24,28 +27,39 @@ _ESTIMATORS: dict[str, tuple[type[Estimator], type[BaseModel]]] = {
     "ekf": (Ekf, EkfParams),
     "pf": (Pf, PfParams),
 }
+GROUP = "riverbench.estimators"
+"""The entry-point group in which installed packages register estimators."""
 
 
-def available() -> list[str]:
-    """Names of the estimators create() knows."""
+def built_in() -> list[str]:
+    """Names of the estimators riverbench ships (a scenario's default stack)."""
     return list(_ESTIMATORS)
 
 
+def available() -> list[str]:
+    """Names create() knows: the built-in estimators, then those installed plugins register."""
+    return built_in() + [name for name in plugin.names(GROUP) if name not in _ESTIMATORS]
+
+
 def params_model(name: str) -> type[BaseModel]:
-    """The pydantic model of estimator `name`'s parameters (documented defaults)."""
-    if name not in _ESTIMATORS:
-        raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())})")
-    return _ESTIMATORS[name][1]
+    """The pydantic model of estimator `name`'s parameters (documented defaults); `name` may be 'package.module:Class'."""
+    return _ESTIMATORS[name][1] if name in _ESTIMATORS else _plugin(name).Params
 
 
 def create(name: str, **params) -> Estimator:
     """A fresh estimator by name; unknown names, parameters and monitors raise ValueError naming them."""
-    if name not in _ESTIMATORS:
-        raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())})")
-    cls = _ESTIMATORS[name][0]
+    cls = _ESTIMATORS[name][0] if name in _ESTIMATORS else _plugin(name)
     p = validate_params(params_model(name), params, f"estimator '{name}'")
     monitor = monitors.create(p.monitor, **p.monitor_params)
     return cls(p, monitor)
 
 
-__all__ = ["Estimator", "Event", "Verdict", "available", "create", "monitors", "params_model"]
+def _plugin(name: str) -> type:
+    """The plugin estimator class `name` names (checked), or a ValueError listing the known names."""
+    if not plugin.is_path(name) and name not in plugin.names(GROUP):
+        raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())}, or a plugin 'package.module:Class')")
+    return plugin.load(name, GROUP, "estimator", methods=("add_fix", "add_match"), properties=("pose", "cov"),
+                       params=BaseEstimatorParams)
+
+
+__all__ = ["GROUP", "BaseEstimatorParams", "Estimator", "Event", "Verdict", "available", "built_in", "create", "monitors", "params_model"]

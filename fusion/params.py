@@ -1,4 +1,4 @@
-"""Parameters every estimator shares: odometry source, monitor, vessel geometry, GPS noise, start-up."""
+"""Estimator parameters: what every estimator is given (odometry source, monitor, vessel geometry) and what the built-ins share."""
 
 from __future__ import annotations
 
@@ -8,14 +8,37 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 DEFAULT_MOUNT = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 1.8), (0.0, 0.0, 0.0, 1.0))
 
 
-class EstimatorParams(BaseModel):
-    """Shared estimator parameters (defaults in brackets).
+class BaseEstimatorParams(BaseModel):
+    """What every estimator is given, a plugin's `Params` included (defaults in brackets).
 
     matcher: name of the matcher whose odometry this estimator uses ["gicp": it reports a
         covariance with its degenerate directions, which kiss_icp does not].
     monitor / monitor_params: GPS integrity monitor and its parameters (default set per estimator).
     mount: 4x4 base_link<-lidar [identity rotation, lidar 1.8 m above base_link].
     antenna: antenna position on base_link, metres [(0, 0, 1.3)].
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    matcher: str = Field("gicp", min_length=1)
+    monitor: str = "consistency"
+    monitor_params: dict = Field(default_factory=dict)
+    mount: tuple[tuple[float, float, float, float], ...] = DEFAULT_MOUNT
+    antenna: tuple[float, float, float] = (0.0, 0.0, 1.3)
+
+    @field_validator("mount")
+    @classmethod
+    def _rigid(cls, mount: tuple) -> tuple:
+        m = np.asarray(mount, dtype=float)
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            raise ValueError("must be a finite 4x4 matrix")
+        if not np.allclose(m[3], (0, 0, 0, 1)) or not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-6):
+            raise ValueError("must be a rigid transform (rotation and translation)")
+        return mount
+
+
+class EstimatorParams(BaseEstimatorParams):
+    """Parameters the built-in estimators share, beyond BaseEstimatorParams' (defaults in brackets).
+
     uere_m: range error scale; a fix's per-axis sigma is uere_m * HDOP / sqrt(2) [3.0, i.e. about
         2.5 m CEP50 at HDOP 1, a consumer receiver].
     gps_correlation_s: time constant of the receiver's position error: its own filter and slowly
@@ -55,12 +78,6 @@ class EstimatorParams(BaseModel):
         nor become the re-lock point [30 s].
     """
 
-    model_config = ConfigDict(extra="forbid")
-    matcher: str = Field("gicp", min_length=1)
-    monitor: str = "consistency"
-    monitor_params: dict = Field(default_factory=dict)
-    mount: tuple[tuple[float, float, float, float], ...] = DEFAULT_MOUNT
-    antenna: tuple[float, float, float] = (0.0, 0.0, 1.3)
     uere_m: float = Field(3.0, gt=0)
     gps_correlation_s: float = Field(30.0, ge=0)
     accept_dead_reckoning: bool = False
@@ -78,16 +95,6 @@ class EstimatorParams(BaseModel):
     odom_slip_frac: float = Field(1.0, ge=0)
     odom_slip_sigmas: float = Field(3.0, ge=0)
     relock_s: float = Field(30.0, gt=0)
-
-    @field_validator("mount")
-    @classmethod
-    def _rigid(cls, mount: tuple) -> tuple:
-        m = np.asarray(mount, dtype=float)
-        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-            raise ValueError("must be a finite 4x4 matrix")
-        if not np.allclose(m[3], (0, 0, 0, 1)) or not np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-6):
-            raise ValueError("must be a rigid transform (rotation and translation)")
-        return mount
 
 
 class MotionModelParams(EstimatorParams):

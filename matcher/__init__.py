@@ -1,11 +1,12 @@
-"""Scan matchers under test (pcl6d, bev3dof, kiss_icp, gicp) and the point-count scan gate."""
+"""Scan matchers under test (pcl6d, bev3dof, kiss_icp, gicp, and plugins) and the point-count scan gate."""
 
 from __future__ import annotations
 
 from importlib import import_module
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
+from matcher import plugin
 from matcher.base import Matcher, MatcherParams
 from matcher.result import MatchResult
 
@@ -15,30 +16,41 @@ _MATCHERS = {
     "kiss_icp": ("matcher.kiss", "KissIcp", "KissIcpParams"),
     "gicp": ("matcher.gicp", "Gicp", "GicpParams"),
 }
+GROUP = "riverbench.matchers"
+"""The entry-point group in which installed packages register matchers."""
 
-__all__ = ["MatchResult", "Matcher", "MatcherParams", "available", "create", "params_model"]
+__all__ = ["GROUP", "MatchResult", "Matcher", "MatcherParams", "available", "create", "params_model"]
 
 
 def available() -> list[str]:
-    """Names accepted by `create`."""
-    return list(_MATCHERS)
+    """Names accepted by `create`: the built-in matchers, then those installed plugins register."""
+    return list(_MATCHERS) + [name for name in plugin.names(GROUP) if name not in _MATCHERS]
 
 
-def params_model(name: str) -> type[MatcherParams]:
-    """The pydantic model of matcher `name`'s parameters (documented defaults)."""
-    if name not in _MATCHERS:
-        raise ValueError(f"unknown matcher {name!r} (one of {', '.join(_MATCHERS)})")
-    module, _, model = _MATCHERS[name]
-    return getattr(import_module(module), model)
+def params_model(name: str) -> type[BaseModel]:
+    """The pydantic model of matcher `name`'s parameters (documented defaults); `name` may be 'package.module:Class'."""
+    if name in _MATCHERS:
+        module, _, model = _MATCHERS[name]
+        return getattr(import_module(module), model)
+    return _plugin(name).Params
 
 
 def create(name: str, **params) -> Matcher:
-    """A fresh matcher `name` with `params`; an unknown name or a bad parameter is a ValueError naming it."""
+    """A fresh matcher `name` (or 'package.module:Class') with `params`; an unknown name or a bad parameter is a ValueError naming it."""
     model = params_model(name)
     try:
         validated = model(**params)
     except ValidationError as exc:
         problems = "; ".join(f"{'.'.join(map(str, e['loc'])) or '?'}: {e['msg']}" for e in exc.errors())
         raise ValueError(f"matcher {name!r}: bad parameter {problems}") from None
-    module, cls, _ = _MATCHERS[name]
-    return getattr(import_module(module), cls)(validated)
+    if name in _MATCHERS:
+        module, cls, _ = _MATCHERS[name]
+        return getattr(import_module(module), cls)(validated)
+    return _plugin(name)(validated)
+
+
+def _plugin(name: str) -> type:
+    """The plugin matcher class `name` names (checked), or a ValueError listing the known names."""
+    if not plugin.is_path(name) and name not in plugin.names(GROUP):
+        raise ValueError(f"unknown matcher {name!r} (one of {', '.join(available())}, or a plugin 'package.module:Class')")
+    return plugin.load(name, GROUP, "matcher", methods=("register",))

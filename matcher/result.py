@@ -1,4 +1,4 @@
-"""MatchResult: what a scan matcher returns for one scan."""
+"""MatchResult: what a scan matcher returns for one scan, and the check that a result is well formed."""
 
 from __future__ import annotations
 
@@ -27,3 +27,22 @@ class MatchResult:
     @classmethod
     def failure(cls, reason: str, n_points: int = 0, seconds: float = 0.0, **info) -> "MatchResult":
         return cls(T=np.eye(4), ok=False, cov=None, n_points=n_points, seconds=seconds, info={"reason": reason, **info})
+
+
+def checked(result: object) -> MatchResult:
+    """`result` if it is a well-formed MatchResult (what every matcher, a plugin's too, must return), else a TypeError saying why."""
+    if not isinstance(result, MatchResult):
+        raise TypeError(f"register returned a {type(result).__name__}, not a matcher.MatchResult")
+    try:
+        T = np.asarray(result.T, dtype=float)
+        cov = None if result.cov is None else np.asarray(result.cov, dtype=float)
+        int(result.n_points), float(result.seconds)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"register returned a malformed MatchResult: {exc}") from None
+    if T.shape != (4, 4):
+        raise TypeError(f"register returned a MatchResult whose T has shape {T.shape}, not (4, 4)")
+    if cov is not None and cov.shape != (6, 6):
+        raise TypeError(f"register returned a MatchResult whose cov has shape {cov.shape}, not (6, 6)")
+    if not isinstance(result.info, dict):
+        raise TypeError(f"register returned a MatchResult whose info is a {type(result.info).__name__}, not a dict")
+    return result

@@ -3,8 +3,10 @@
 Each matcher lives in one lane for the whole run (matchers are stateful). Lane 0 is the calling
 process, which also simulates and runs the estimators; lanes 1.. are worker processes fed through
 queues (their feeder threads send while the caller keeps simulating). Matchers go greedily to the
-least-loaded lane by a rough per-scan cost measured with benchmarks/matchers.py. A matcher that
-raises, or whose worker dies, fails from that scan on; the run goes on.
+least-loaded lane by a rough per-scan cost measured with benchmarks/matchers.py. A matcher whose
+constructor raises, that raises or returns anything but a well-formed MatchResult, or whose worker
+dies, fails from that scan on; the run goes on. A plugin matcher is imported again in each worker
+(spawned processes inherit sys.path), so it must be importable: installed or on PYTHONPATH.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import matcher as matchers_pkg
-from matcher.result import MatchResult
+from matcher.result import MatchResult, checked
 from sim.scan import Scan
 
 COST_MS = {"pcl6d": 8.0, "gicp": 5.0, "kiss_icp": 3.0, "bev3dof": 1.5}
@@ -31,18 +33,37 @@ CALLER_BASE_MS = 10.0
 
 @dataclass(frozen=True)
 class MatcherSetup:
-    """What a lane needs to build one matcher."""
+    """What a lane needs to build one matcher (kind: a matcher name or a plugin 'package.module:Class')."""
 
     id: str
     kind: str
     params: dict
 
 
+class _Unbuilt:
+    """Stands in for a matcher whose constructor raised: it fails at the first scan, with why."""
+
+    def __init__(self, why: str) -> None:
+        self.why = why
+
+    def register(self, scan: Scan) -> MatchResult:
+        """Raise why the matcher could not be built."""
+        raise RuntimeError(self.why)
+
+
+def _build(setup: MatcherSetup) -> "matchers_pkg.Matcher | _Unbuilt":
+    """The matcher `setup` describes, or an _Unbuilt saying why its constructor raised."""
+    try:
+        return matchers_pkg.create(setup.kind, **setup.params)
+    except Exception as exc:  # a plugin's constructor may raise anything: that matcher fails, the run goes on
+        return _Unbuilt(f"could not be built: {type(exc).__name__}: {exc}")
+
+
 class _Lane:
     """Matchers in one process; `register` returns (id, MatchResult, error message or '') per matcher."""
 
     def __init__(self, setups: list[MatcherSetup]) -> None:
-        self.matchers = {s.id: matchers_pkg.create(s.kind, **s.params) for s in setups}
+        self.matchers = {s.id: _build(s) for s in setups}
         self.dead: dict[str, str] = {}
 
     def register(self, scan: Scan) -> list[tuple[str, MatchResult, str]]:
@@ -52,8 +73,8 @@ class _Lane:
                 out.append((mid, MatchResult.failure(f"failed earlier: {self.dead[mid]}"), ""))
                 continue
             try:
-                out.append((mid, m.register(scan), ""))
-            except Exception as exc:  # a matcher that raises fails from this scan on
+                out.append((mid, checked(m.register(scan)), ""))
+            except Exception as exc:  # a matcher that raises (or returns no MatchResult) fails from this scan on
                 message = f"{type(exc).__name__}: {exc}"
                 self.dead[mid] = message
                 out.append((mid, MatchResult.failure(f"raised: {message}"), message))

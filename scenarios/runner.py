@@ -23,10 +23,12 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
+import numpy as np
 import tomli_w
 
 import sim
 import worlds
+from fusion.verdict import Verdict
 from scenarios import files, metrics
 from scenarios import windows as win
 from scenarios.expectations import Outcome
@@ -111,10 +113,10 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
                        rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
     t_start, t_end = scenario.stretch.times(trajectory)
-    estimators = {e.id: e.build(scenario.seed) for e in scenario.estimators}
     feeds = {e.id: e.matcher for e in scenario.estimators}
-    recorder = Recorder([m.id for m in scenario.matchers], list(estimators), trajectory.mount)
-    dead: set[str] = set()
+    refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
+    recorder = Recorder([m.id for m in scenario.matchers], list(feeds), trajectory.mount)
+    estimators, dead = _build_estimators(scenario, recorder, t_start)
     queue: deque = deque()
     scans = 0
     now = t_start
@@ -128,18 +130,23 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
                 out[eid] = call(eid, est)
             except Exception as exc:  # an estimator that raises fails from this input on; the run goes on
                 dead.add(eid)
-                recorder.failure("estimator", eid, stamp, f"{type(exc).__name__}: {exc}")
+                recorder.failure("estimator", eid, stamp, f"{refs[eid]}: {type(exc).__name__}: {exc}")
         return out
+
+    def scan_step(eid: str, est, stamp: float, results: dict) -> np.ndarray:
+        """Feed one estimator its matcher's result (none for gps_only) and read its pose."""
+        if feeds[eid]:
+            est.add_match(stamp, results[feeds[eid]])
+        return _checked_pose(est.pose)
 
     def process_scan(event: ScanEvent, results: dict, errors: dict) -> None:
         for mid, why in errors.items():
-            recorder.failure("matcher", mid, event.stamp, why)
-        feed_estimators(lambda eid, est: est.add_match(event.stamp, results[feeds[eid]]) if feeds[eid] else None, event.stamp)
-        poses = {eid: est.pose if eid not in dead else nan_pose() for eid, est in estimators.items()}
-        recorder.scan(event.stamp, trajectory.pose(event.stamp), results, poses)
+            recorder.failure("matcher", mid, event.stamp, f"{refs[mid]}: {why}")
+        poses = feed_estimators(lambda eid, est: scan_step(eid, est, event.stamp, results), event.stamp)
+        recorder.scan(event.stamp, trajectory.pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in estimators})
 
     def process_fix(fix, nmea) -> None:
-        verdicts = feed_estimators(lambda eid, est: est.add_fix(fix), fix.stamp)
+        verdicts = feed_estimators(lambda eid, est: _checked_verdict(est.add_fix(fix)), fix.stamp)
         # a failed estimator raises no alarm: its fixes count as trusted with no statistic
         recorder.fix(fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan)
                            for eid in estimators})
@@ -155,7 +162,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         while queue and not isinstance(queue[0], ScanEvent):
             process_fix(queue.popleft().fix, nmea)
 
-    setups = [MatcherSetup(m.id, m.kind, m.params) for m in scenario.matchers]
+    setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         try:
             for event in events(world, trajectory, lidar, receiver, t_start, t_end):
@@ -186,6 +193,34 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         "failures": rec.failures,
     }
     return _write(scenario, tmp, rec, run_info, 1.0 / receiver.rate_hz, report)
+
+
+def _build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:
+    """Every estimator by id, and the ids of those whose constructor raised (recorded as failed from the start)."""
+    estimators, dead = {}, set()
+    for spec in scenario.estimators:
+        try:
+            estimators[spec.id] = spec.build(scenario.seed)
+        except Exception as exc:  # a plugin's constructor may raise anything: that estimator fails, the run goes on
+            estimators[spec.id] = None
+            dead.add(spec.id)
+            recorder.failure("estimator", spec.id, t_start, f"{spec.ref}: could not be built: {type(exc).__name__}: {exc}")
+    return estimators, dead
+
+
+def _checked_pose(pose) -> np.ndarray:
+    """An estimator's pose as a 4x4 float array, or a TypeError (a plugin's may be anything)."""
+    matrix = np.asarray(pose, dtype=float)
+    if matrix.shape != (4, 4):
+        raise TypeError(f"pose has shape {matrix.shape}, not (4, 4)")
+    return matrix
+
+
+def _checked_verdict(verdict) -> Verdict:
+    """What add_fix returned, if it is a fusion Verdict, or a TypeError (a plugin's may be anything)."""
+    if not isinstance(verdict, Verdict):
+        raise TypeError(f"add_fix returned a {type(verdict).__name__}, not a fusion.Verdict")
+    return verdict
 
 
 def _write(scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, fix_period: float, report: bool) -> tuple[dict, list[Outcome]]:

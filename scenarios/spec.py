@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 import fusion
 import matcher
 import worlds
+from matcher.plugin import is_path as is_plugin_path
 from scenarios.expectations import Expectation
 from sim.gnss import GnssConfig
 from sim.lidar import HDL32EConfig
@@ -83,37 +84,52 @@ def _time_at_station(trajectory, station_m: float) -> float:
 
 
 class MatcherSpec(BaseModel):
-    """A scan matcher under test: `kind` is one of matcher.available(); `params` its own model's fields."""
+    """A scan matcher under test: `kind` one of matcher.available() or `plugin` a 'package.module:Class';
+    `params` its own model's fields."""
 
     model_config = ConfigDict(extra="forbid")
 
     id: str = Field(..., pattern=ID_PATTERN, description="name of this instance in metrics and files (e.g. 'gicp_fine')")
-    kind: str = Field(..., description="matcher kind: pcl6d, bev3dof, kiss_icp or gicp")
+    kind: str | None = Field(None, description="matcher kind: pcl6d, bev3dof, kiss_icp, gicp or a name an installed plugin registers")
+    plugin: str | None = Field(None, description="instead of kind: a plugin class 'package.module:Class' (installed or on PYTHONPATH)")
     params: dict = Field(default_factory=dict, description="the kind's parameters (see `riverbench scenarios show`)")
+
+    @property
+    def ref(self) -> str:
+        """What matcher.create takes: the kind or the plugin path."""
+        return self.kind or self.plugin or ""
 
     @model_validator(mode="after")
     def _resolve(self) -> "MatcherSpec":
-        model = matcher.params_model(self.kind)
-        self.params = _validated(model, self.params, f"matcher {self.id!r} ({self.kind})")
+        _check_ref("matcher", self.id, self.kind, self.plugin)
+        model = matcher.params_model(self.ref)
+        self.params = _validated(model, self.params, f"matcher {self.id!r} ({self.ref})")
         return self
 
 
 class EstimatorSpec(BaseModel):
-    """A fusion estimator under test, fed by the matcher `matcher` (an id) and judging fixes with `monitor`."""
+    """A fusion estimator under test (`kind` or `plugin`), fed by the matcher `matcher` (an id) and judging fixes with `monitor`."""
 
     model_config = ConfigDict(extra="forbid")
 
     id: str = Field(..., pattern=ID_PATTERN, description="name of this instance in metrics and files")
-    kind: str = Field(..., description="estimator kind: gps_only, hdop_switch, ekf or pf")
+    kind: str | None = Field(None, description="estimator kind: gps_only, hdop_switch, ekf, pf or a name an installed plugin registers")
+    plugin: str | None = Field(None, description="instead of kind: a plugin class 'package.module:Class' (installed or on PYTHONPATH)")
     matcher: str | None = Field(None, description="id of the matcher whose odometry it uses (default: the only one)")
-    monitor: str | None = Field(None, description="GPS integrity monitor (default: the kind's own)")
+    monitor: str | None = Field(None, description="GPS integrity monitor: a name or 'package.module:Class' (default: the kind's own)")
     monitor_params: dict = Field(default_factory=dict, description="the monitor's parameters")
     params: dict = Field(default_factory=dict, description="the kind's parameters (see `riverbench scenarios show`)")
 
+    @property
+    def ref(self) -> str:
+        """What fusion.create takes: the kind or the plugin path."""
+        return self.kind or self.plugin or ""
+
     @model_validator(mode="after")
     def _resolve(self) -> "EstimatorSpec":
-        model = fusion.params_model(self.kind)
-        where = f"estimator {self.id!r} ({self.kind})"
+        _check_ref("estimator", self.id, self.kind, self.plugin)
+        model = fusion.params_model(self.ref)
+        where = f"estimator {self.id!r} ({self.ref})"
         for key in ("matcher", "monitor", "monitor_params"):
             if key in self.params:
                 raise ValueError(f"{where}: set {key!r} on the estimator, not in its params")
@@ -129,9 +145,22 @@ class EstimatorSpec(BaseModel):
 
     def build(self, seed: int):
         """A fresh fusion Estimator with these settings; a random one (pf) draws from the scenario's seed."""
-        seeded = {"seed": seed} if "seed" in fusion.params_model(self.kind).model_fields else {}
-        return fusion.create(self.kind, matcher=self.matcher or "none", monitor=self.monitor,
+        seeded = {"seed": seed} if "seed" in fusion.params_model(self.ref).model_fields else {}
+        return fusion.create(self.ref, matcher=self.matcher or "none", monitor=self.monitor,
                              monitor_params=self.monitor_params, **self.params, **seeded)
+
+
+def _check_ref(what: str, cid: str, kind: str | None, plugin: str | None) -> None:
+    """Exactly one of kind (a name) and plugin (a 'package.module:Class' path), or a ValueError naming both."""
+    where = f"{what} {cid!r}"
+    if kind is not None and plugin is not None:
+        raise ValueError(f"{where}: give kind or plugin, not both (kind = {kind!r}, plugin = {plugin!r})")
+    if kind is None and plugin is None:
+        raise ValueError(f"{where}: give kind (a registered {what} name) or plugin (a class 'package.module:Class')")
+    if kind is not None and is_plugin_path(kind):
+        raise ValueError(f"{where}: kind {kind!r} is a class path: write plugin = {kind!r}")
+    if plugin is not None and not is_plugin_path(plugin):
+        raise ValueError(f"{where}: plugin {plugin!r} is not a class path 'package.module:Class' (a registered name goes in kind)")
 
 
 class Control(BaseModel):
@@ -160,7 +189,7 @@ def default_lists() -> dict[str, list[dict]]:
     """The matchers and estimators a scenario has when it names none, as they would be written in TOML."""
     return {
         "matchers": [{"id": "gicp", "kind": "gicp"}],
-        "estimators": [{"id": k, "kind": k} | ({} if k == "gps_only" else {"matcher": "gicp"}) for k in fusion.available()],
+        "estimators": [{"id": k, "kind": k} | ({} if k == "gps_only" else {"matcher": "gicp"}) for k in fusion.built_in()],
     }
 
 

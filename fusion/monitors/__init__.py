@@ -1,4 +1,4 @@
-"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, combined, combined_cn0, none."""
+"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, combined, combined_cn0, none, and plugins."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
 from fusion.monitors.hdop import HdopMonitor, HdopParams
 from fusion.monitors.nis import NisMonitor, NisParams
 from fusion.monitors.none import NoMonitor, NoneParams
+from matcher import plugin
 
 _MONITORS: dict[str, tuple[type[Monitor], type[BaseModel]]] = {
     "hdop": (HdopMonitor, HdopParams),
@@ -21,11 +22,13 @@ _MONITORS: dict[str, tuple[type[Monitor], type[BaseModel]]] = {
     "combined_cn0": (CombinedMonitor, CombinedCn0Params),
     "none": (NoMonitor, NoneParams),
 }
+GROUP = "riverbench.monitors"
+"""The entry-point group in which installed packages register monitors."""
 
 
 def available() -> list[str]:
-    """Names of the monitors create() knows."""
-    return sorted(_MONITORS)
+    """Names create() knows: the built-in monitors, then those installed plugins register."""
+    return sorted(_MONITORS) + [name for name in plugin.names(GROUP) if name not in _MONITORS]
 
 
 def validate_params(model: type[BaseModel], params: dict, what: str) -> BaseModel:
@@ -39,18 +42,14 @@ def validate_params(model: type[BaseModel], params: dict, what: str) -> BaseMode
 
 
 def params_model(name: str) -> type[BaseModel]:
-    """The pydantic model of monitor `name`'s parameters."""
-    if name not in _MONITORS:
-        raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())})")
-    return _MONITORS[name][1]
+    """The pydantic model of monitor `name`'s parameters; `name` may be 'package.module:Class'."""
+    return _MONITORS[name][1] if name in _MONITORS else _plugin(name).Params
 
 
 def create(name: str, **params) -> Monitor:
     """A fresh monitor by name; unknown names and parameters raise ValueError naming them."""
-    if name not in _MONITORS:
-        raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())})")
-    cls, model = _MONITORS[name]
-    p = validate_params(model, params, f"monitor '{name}'")
+    cls = _MONITORS[name][0] if name in _MONITORS else _plugin(name)
+    p = validate_params(params_model(name), params, f"monitor '{name}'")
     if cls is CombinedMonitor:
         nested = [m for m in p.members if m in _MONITORS and _MONITORS[m][0] is CombinedMonitor]
         if nested:
@@ -62,4 +61,11 @@ def create(name: str, **params) -> Monitor:
     return cls(p)
 
 
-__all__ = ["FixContext", "Monitor", "available", "create", "params_model", "validate_params"]
+def _plugin(name: str) -> type:
+    """The plugin monitor class `name` names (checked), or a ValueError listing the known names."""
+    if not plugin.is_path(name) and name not in plugin.names(GROUP):
+        raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())}, or a plugin 'package.module:Class')")
+    return plugin.load(name, GROUP, "monitor", methods=("check", "commit", "reset", "note_outage"))
+
+
+__all__ = ["GROUP", "FixContext", "Monitor", "available", "create", "params_model", "validate_params"]

@@ -188,7 +188,7 @@ def _interrupt(signum, frame) -> None:
 
 @app.command()
 def sweep(
-    scenario: list[str] = typer.Argument(..., help="library names or .toml paths; every point runs on each"),
+    scenario: list[str] = typer.Argument(None, help="library names or .toml paths, every point runs on each (default: the whole library)"),
     grid: list[str] = typer.Option([], "--grid", help="key=v1,v2,... (TOML values); repeat for a cartesian grid"),
     sample: tuple[int, str] = typer.Option((0, ""), "--sample", show_default=False,
                                            help="N key=lo:hi[:log][,key2=lo:hi...]: N joint uniform (or log-uniform) draws"),
@@ -209,6 +209,7 @@ def sweep(
     """Run a parameter sweep: a results table (Parquet and CSV), a run directory per run, plots, the best parameters."""
     from datetime import datetime, timezone
 
+    import scenarios
     from scenarios import sweep as sweeping
     from scenarios.sweep_plan import Axis, Range, SweepPlan
     from scenarios.sweep_progress import SweepProgress, summary
@@ -223,7 +224,7 @@ def sweep(
 
             import_ray()
         count, ranges = sample
-        plan = SweepPlan(tuple(scenario), tuple(Axis.parse(g) for g in grid),
+        plan = SweepPlan(tuple(scenario or scenarios.available()), tuple(Axis.parse(g) for g in grid),
                          tuple(Range.parse(r) for r in ranges.split(",") if r.strip()) if ranges else (),
                          samples=count, seeds=seeds, fixed=tuple(set_), sample_seed=sample_seed)
         if count and not ranges:

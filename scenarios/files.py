@@ -39,12 +39,13 @@ def read_tum(path: Path) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(-1, 8)
 
 
-def write_gps_csv(path: Path, rec: RunRecord) -> None:
-    """One row per fix: time, reported position, quality, DOP, the true error, and each estimator's verdict."""
+def write_gps_csv(path: Path, rec: RunRecord, truth: bool = True) -> None:
+    """One row per fix: time, reported position, quality, DOP, the true error (not when `truth` is False: a replay
+    has none), and each estimator's verdict."""
     f = rec.fixes
     eids = list(f.trusted)
-    header = ["t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop",
-              "err_e", "err_n", "err_u", "err_h", "open_sky_err_h", "added_err_h", "nlos_used"]
+    header = ["t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop"]
+    header += ["err_e", "err_n", "err_u", "err_h", "open_sky_err_h", "added_err_h", "nlos_used"] if truth else []
     header += [f"{e}.{k}" for e in eids for k in ("trusted", "statistic")]
     err_h, added = f.horizontal_error, f.added_error
     open_sky = np.hypot(f.open_sky_error[:, 0], f.open_sky_error[:, 1]) if len(f.t) else np.zeros(0)
@@ -53,8 +54,9 @@ def write_gps_csv(path: Path, rec: RunRecord) -> None:
         w.writerow(header)
         for i in range(len(f.t)):
             row = [f"{f.t[i]:.3f}", int(f.quality[i]), *_fmt(f.enu[i], 3), _fmt1(f.lat[i], 9), _fmt1(f.lon[i], 9),
-                   _fmt1(f.alt[i], 3), int(f.num_sats[i]), _fmt1(f.hdop[i], 2), *_fmt(f.error[i], 3),
-                   _fmt1(err_h[i], 3), _fmt1(open_sky[i], 3), _fmt1(added[i], 3), int(f.nlos_used[i])]
+                   _fmt1(f.alt[i], 3), int(f.num_sats[i]), _fmt1(f.hdop[i], 2)]
+            if truth:
+                row += [*_fmt(f.error[i], 3), _fmt1(err_h[i], 3), _fmt1(open_sky[i], 3), _fmt1(added[i], 3), int(f.nlos_used[i])]
             for e in eids:
                 row += [int(f.trusted[e][i]), _fmt1(f.statistic[e][i], 4)]
             w.writerow(row)

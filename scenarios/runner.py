@@ -17,30 +17,26 @@ import resource
 import shutil
 import tempfile
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-import numpy as np
 import tomli_w
 
 import sim
 import worlds
-from fusion.verdict import Verdict
 from scenarios import files, metrics
 from scenarios import windows as win
 from scenarios.expectations import Outcome
+from scenarios.feed import Feed
 from scenarios.matcher_pool import MatcherPool, MatcherSetup
-from scenarios.record import Recorder, RunRecord, nan_pose
+from scenarios.record import Recorder, RunRecord
 from scenarios.spec import Scenario
-from scenarios.stream import ScanEvent, events
+from scenarios.stream import events
 
 RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
 """The numbers of metrics.json's `run` node (besides scenario, scenario_hash, lanes and failures)."""
-LOOKAHEAD_SCANS = 1
-"""Scans simulated ahead of the one being matched (the overlap of simulation and matching)."""
 
 
 class RunFailed(RuntimeError):
@@ -113,72 +109,22 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
                        rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
     t_start, t_end = scenario.stretch.times(trajectory)
-    feeds = {e.id: e.matcher for e in scenario.estimators}
-    refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
-    recorder = Recorder([m.id for m in scenario.matchers], list(feeds), trajectory.mount)
-    estimators, dead = _build_estimators(scenario, recorder, t_start)
-    queue: deque = deque()
-    scans = 0
-    now = t_start
-
-    def feed_estimators(call: Callable[[str, object], object], stamp: float) -> dict:
-        out = {}
-        for eid, est in estimators.items():
-            if eid in dead:
-                continue
-            try:
-                out[eid] = call(eid, est)
-            except Exception as exc:  # an estimator that raises fails from this input on; the run goes on
-                dead.add(eid)
-                recorder.failure("estimator", eid, stamp, f"{refs[eid]}: {type(exc).__name__}: {exc}")
-        return out
-
-    def scan_step(eid: str, est, stamp: float, results: dict) -> np.ndarray:
-        """Feed one estimator its matcher's result (none for gps_only) and read its pose."""
-        if feeds[eid]:
-            est.add_match(stamp, results[feeds[eid]])
-        return _checked_pose(est.pose)
-
-    def process_scan(event: ScanEvent, results: dict, errors: dict) -> None:
-        for mid, why in errors.items():
-            recorder.failure("matcher", mid, event.stamp, f"{refs[mid]}: {why}")
-        poses = feed_estimators(lambda eid, est: scan_step(eid, est, event.stamp, results), event.stamp)
-        recorder.scan(event.stamp, trajectory.pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in estimators})
-
-    def process_fix(fix, nmea) -> None:
-        verdicts = feed_estimators(lambda eid, est: _checked_verdict(est.add_fix(fix)), fix.stamp)
-        # a failed estimator raises no alarm: its fixes count as trusted with no statistic
-        recorder.fix(fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan)
-                           for eid in estimators})
-        nmea.write("\r\n".join(fix.nmea()) + "\r\n")
-
-    def drain(pool, nmea, keep_scans: int) -> None:
-        while queue and sum(isinstance(e, ScanEvent) for e in queue) > keep_scans:
-            event = queue.popleft()
-            if isinstance(event, ScanEvent):
-                process_scan(event, *pool.collect())
-            else:
-                process_fix(event.fix, nmea)
-        while queue and not isinstance(queue[0], ScanEvent):
-            process_fix(queue.popleft().fix, nmea)
-
+    recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], trajectory.mount)
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
+    now = t_start
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
+        feed = Feed(scenario, pool, recorder, trajectory.pose, nmea, lambda event: event.fix.nmea(), t_start)
         try:
             for event in events(world, trajectory, lidar, receiver, t_start, t_end):
                 now = event.stamp
-                queue.append(event)
-                if isinstance(event, ScanEvent):
-                    pool.submit(event.scan)
-                    scans += 1
-                drain(pool, nmea, LOOKAHEAD_SCANS)
+                feed.push(event)
                 if progress is not None:
-                    progress(now, t_start, t_end, scans)
-            drain(pool, nmea, 0)
+                    progress(now, t_start, t_end, feed.scans)
+            feed.finish()
         except KeyboardInterrupt:
-            raise RunInterrupted(f"interrupted at t={now:.1f} s (scan {scans}); nothing written") from None
+            raise RunInterrupted(f"interrupted at t={now:.1f} s (scan {feed.scans}); nothing written") from None
         except (ValueError, RuntimeError, FloatingPointError) as exc:
-            raise RunFailed(f"scan {scans} at t={now:.2f} s: {exc}") from None
+            raise RunFailed(f"scan {feed.scans} at t={now:.2f} s: {exc}") from None
         pool.close()
         workers_rss = pool.workers_rss_mb
         lanes = pool.lanes
@@ -193,34 +139,6 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         "failures": rec.failures,
     }
     return _write(scenario, tmp, rec, run_info, 1.0 / receiver.rate_hz, report)
-
-
-def _build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:
-    """Every estimator by id, and the ids of those whose constructor raised (recorded as failed from the start)."""
-    estimators, dead = {}, set()
-    for spec in scenario.estimators:
-        try:
-            estimators[spec.id] = spec.build(scenario.seed)
-        except Exception as exc:  # a plugin's constructor may raise anything: that estimator fails, the run goes on
-            estimators[spec.id] = None
-            dead.add(spec.id)
-            recorder.failure("estimator", spec.id, t_start, f"{spec.ref}: could not be built: {type(exc).__name__}: {exc}")
-    return estimators, dead
-
-
-def _checked_pose(pose) -> np.ndarray:
-    """An estimator's pose as a 4x4 float array, or a TypeError (a plugin's may be anything)."""
-    matrix = np.asarray(pose, dtype=float)
-    if matrix.shape != (4, 4):
-        raise TypeError(f"pose has shape {matrix.shape}, not (4, 4)")
-    return matrix
-
-
-def _checked_verdict(verdict) -> Verdict:
-    """What add_fix returned, if it is a fusion Verdict, or a TypeError (a plugin's may be anything)."""
-    if not isinstance(verdict, Verdict):
-        raise TypeError(f"add_fix returned a {type(verdict).__name__}, not a fusion.Verdict")
-    return verdict
 
 
 def _write(scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, fix_period: float, report: bool) -> tuple[dict, list[Outcome]]:

@@ -1,0 +1,14 @@
+"""Replay of real recordings: a scenario's matchers and estimators over a rosbag2 (or ROS 1 bag) or a Velodyne HDL-32E pcap.
+
+    replay("boat.mcap_dir", "my_boat.toml", "runs/boat") -> ReplayResult (run directory, metrics)
+
+Modules: recording (time base, ENU origin, time order), clouds (PointCloud2 -> Scan), fixes (NMEA,
+NavSatFix -> GnssFix), bag and pcap (the readers), run (the replay and its run directory), metrics
+(what needs no truth), report.
+"""
+
+from __future__ import annotations
+
+from scenarios.replay.run import ReplayResult, replay
+
+__all__ = ["ReplayResult", "replay"]

@@ -1,0 +1,134 @@
+"""A recording opened for replay: where its time and ENU frame start, and its scans and fixes as a time-ordered stream.
+
+Time: replay stamps are seconds since the scenario's UTC epoch (`[gnss] epoch_utc`) when the
+recording starts within a day after it, as a simulated run's are (an exported run replays on its
+own stamps); otherwise seconds since the recording's first message.
+ENU: about the scenario's world origin when the recording's first position lies within
+ORIGIN_RADIUS_M of it (a recording made on that world's river); otherwise about that first position.
+Order: readers stamp every event from the recording's own header or packet times and release them
+in stamp order (a scan before a fix at the same stamp, as in simulation) once REORDER_LAG_S of
+recording has passed them, so a cloud logged after the fixes of its revolution still comes first.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+
+from scenarios.feed import BadScan
+from scenarios.stream import ScanEvent
+from sim.geodesy import LocalFrame
+from sim.gnss_fix import GnssFix
+
+DAY_NS = 86_400 * 10**9
+ORIGIN_RADIUS_M = 20_000.0
+REORDER_LAG_S = 1.0
+UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+
+
+@dataclass(frozen=True)
+class RecordedFix:
+    """A receiver epoch read from a recording: the fix as the estimators take it, and the NMEA sentences it came from (if any)."""
+
+    stamp: float
+    fix: GnssFix
+    sentences: tuple[str, ...] = ()
+
+
+Event = ScanEvent | RecordedFix | BadScan
+
+
+@dataclass(frozen=True)
+class Place:
+    """What a reader takes from the scenario: world origin, UTC epoch, lidar revolution start (deg CCW from its x)."""
+
+    origin: tuple[float, float, float]
+    epoch_utc: datetime
+    start_azimuth_deg: float = 180.0
+
+
+@dataclass(frozen=True)
+class Geo:
+    """The replay's time zero (ns since the Unix epoch) and ENU frame, fixed from the recording's first message and position."""
+
+    zero_ns: int
+    origin: tuple[float, float, float]
+    origin_source: str
+    frame: LocalFrame = field(repr=False)
+
+    @classmethod
+    def choose(cls, place: Place, first_ns: int, first_position: tuple[float, float, float] | None) -> "Geo":
+        """Time zero and ENU origin by the rules of the module docstring."""
+        epoch = unix_ns(place.epoch_utc)
+        zero = epoch if 0 <= first_ns - epoch < DAY_NS else first_ns
+        origin, source = tuple(place.origin), "world"
+        if first_position is not None and distance_m(place.origin, first_position) > ORIGIN_RADIUS_M:
+            origin, source = tuple(first_position), "first fix"
+        return cls(zero, origin, source, LocalFrame.at(*origin))
+
+    def seconds(self, ns: int) -> float:
+        """Replay time of a recording time in integer nanoseconds since the Unix epoch."""
+        return (ns - self.zero_ns) / 1e9
+
+    def enu(self, lat: float, lon: float, alt: float) -> np.ndarray:
+        """ENU metres of a WGS-84 position (NaN when it has none)."""
+        if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(alt)):
+            return np.full(3, np.nan)
+        return self.frame.enu_of_ecef(np.array(pymap3d.geodetic2ecef(lat, lon, alt)))
+
+    def utc(self, stamp: float) -> datetime:
+        """The UTC time of a replay stamp (to the microsecond)."""
+        return UNIX_EPOCH + timedelta(microseconds=self.zero_ns // 1000 + round(stamp * 1e6))
+
+
+def unix_ns(when: datetime) -> int:
+    """Integer nanoseconds since the Unix epoch of an aware datetime."""
+    return (when - UNIX_EPOCH) // timedelta(microseconds=1) * 1000
+
+
+def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:
+    """Straight-line distance between two WGS-84 positions."""
+    return float(np.linalg.norm(np.subtract(pymap3d.geodetic2ecef(*a), pymap3d.geodetic2ecef(*b))))
+
+
+@dataclass(frozen=True)
+class Recording:
+    """An opened recording: what was picked from it, its time span in replay seconds, and its events (read lazily, once)."""
+
+    path: Path
+    format: str
+    lidar_source: str
+    gps_source: str
+    geo: Geo
+    t_start: float
+    t_end: float
+    events: Callable[[], Iterator[Event]] = field(repr=False)
+
+
+class TimeOrder:
+    """Events released in stamp order, a scan before a fix or failure at the same stamp, once the recording has moved past them."""
+
+    def __init__(self) -> None:
+        self._heap: list[tuple[float, int, int, Event]] = []
+        self._seq = itertools.count()
+
+    def add(self, event: Event) -> None:
+        """Hold an event until its turn."""
+        heapq.heappush(self._heap, (event.stamp, 0 if isinstance(event, ScanEvent) else 1, next(self._seq), event))
+
+    def release(self, before: float) -> Iterator[Event]:
+        """The held events stamped before `before`, in order."""
+        while self._heap and self._heap[0][0] < before:
+            yield heapq.heappop(self._heap)[3]
+
+    def rest(self) -> Iterator[Event]:
+        """Every held event, in order (the recording ended)."""
+        return self.release(math.inf)

@@ -1,0 +1,118 @@
+"""A replay's report: report.md, report.html and plots/map.png from its run directory, in the blocks and renderers of scenarios.report.
+
+There is no truth: the estimators are compared with the GPS fixes their own monitors trusted
+(a reference with its own error), the matchers by what they report about themselves.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from scenarios import plots
+from scenarios import report as run_report
+from scenarios.atomic import atomic_path
+from scenarios.report import Cell, Column, Heading, Table, Text, get, metres, num, share
+
+MAP = "plots/map.png"
+MAP_CAPTION = ("The recording in the world's ENU frame: GPS fixes (grey: measured, brown: dead reckoning), each estimate, "
+               "and each matcher's odometry (dashed).")
+ESTIMATOR_COLUMNS = [
+    Column("available", get("available"), share, "high"),
+    Column("trusted fixes", get("against_gps.trusted"), share, None),
+    Column("compared", get("against_gps.fixes"), lambda v: num(v, ".0f"), None),
+    Column("to GPS rmse", get("against_gps.rmse"), metres, None),
+    Column("to GPS median", get("against_gps.median"), metres, None),
+    Column("to GPS p95", get("against_gps.p95"), metres, None),
+    Column("to GPS max", get("against_gps.max"), metres, None),
+]
+MATCHER_COLUMNS = [c for c in run_report.MATCHER_COLUMNS if c.title in ("success", "gated", "Hz", "ms p95", "points median", "degenerate")]
+
+
+def write(run_dir: Path) -> None:
+    """Write plots/map.png, report.md and report.html into a finished replay directory."""
+    run_dir = Path(run_dir)
+    tree = json.loads((run_dir / "metrics.json").read_text())
+    images = {MAP: MAP_CAPTION} if draw_map(run_dir, tree) else {}
+    blocks = build(tree, images)
+    title = f"riverbench replay: {Path(tree['run']['recording']['path']).name}"
+    for name, text in (("report.md", run_report.to_markdown(blocks)), ("report.html", run_report.to_html(blocks, run_dir, title))):
+        with atomic_path(run_dir / name) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+
+
+def build(tree: dict, images: dict[str, str]) -> list:
+    """Every block of the report, in reading order."""
+    ctx = run_report.Context(tree, {}, images, 0.0, {})
+    blocks = [*header(tree), *run_report.failures(ctx)]
+    estimators = tree.get("estimators", {})
+    if estimators:
+        note = ("No truth: horizontal distance (m) from each estimate's antenna, interpolated to the fix time, to the measured GPS "
+                "fixes its own monitor trusted (their share: trusted fixes). GPS has its own error: this is agreement with it, "
+                "not accuracy.")
+        blocks += [Heading(2, "Estimators against GPS"), run_report.ranked_table("estimator", estimators, ESTIMATOR_COLUMNS,
+                                                                                 labels(estimators), note)]
+    blocks += [*run_report.figures(ctx, "map"), *gps(tree.get("gps", {}))]
+    matchers = tree.get("matchers", {})
+    if matchers:
+        note = ("Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; degenerate: "
+                "usable matches with an unobserved direction.")
+        blocks += [Heading(2, "Scan matchers"), run_report.ranked_table("matcher", matchers, MATCHER_COLUMNS, labels(matchers), note)]
+    return blocks
+
+
+def header(tree: dict) -> list:
+    """Title, what was replayed through what, its time base and ENU origin, and how fast it ran."""
+    run, rec = tree["run"], tree["run"]["recording"]
+    lat, lon = rec["origin"][:2]
+    return [Heading(1, f"riverbench replay: {Path(rec['path']).name}"),
+            Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {rec['format']} · lidar: {rec['lidar']} · GPS: {rec['gps']}",
+                 "meta"),
+            Text(f"time zero {rec['time_zero_utc']} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
+                 f"t = {num(run['t_start'], '.1f')} … {num(run['t_end'], '.1f')} s", "meta"),
+            Text(f"{num(run['duration_s'], '.1f')} s of recording in {num(run['wall_s'], '.1f')} s "
+                 f"({num(run['realtime_factor'], '.1f')}× real time) · {run['scans']} scans · {run['fixes']} GPS fixes · "
+                 f"peak memory {num(run['peak_rss_mb'], '.0f')} MB", "meta")]
+
+
+def labels(nodes: dict[str, dict]) -> dict[str, str]:
+    """Row labels: the id, and when it failed."""
+    return {k: f"{k} (failed at {num(n.get('failed_at'), '.1f')} s)" if n.get("failed") else k for k, n in nodes.items()}
+
+
+def gps(g: dict) -> list:
+    """The receiver's fix qualities and HDOP as recorded."""
+    if not g:
+        return []
+    return [Heading(2, "GPS"), Table(["fixes", "measured", "valid", "dead reckoning", "HDOP median"],
+                                     [[Cell(str(g.get("fixes"))), Cell(share(g.get("measured"))), Cell(share(g.get("valid"))),
+                                       Cell(share(g.get("dead_reckoning"))), Cell(num(g.get("hdop_median"), ".2f"))]])]
+
+
+def draw_map(run_dir: Path, tree: dict) -> bool:
+    """Draw plots/map.png (False when there is nothing to draw)."""
+    fixes = plots.read_csv(run_dir / "gps.csv")
+    tracks = {k: plots.read_tum(run_dir / f"{k}.tum") for k in [*tree.get("estimators", {}), *tree.get("matchers", {})]}
+    if not len(fixes.get("t", [])) and not any(len(t.t) for t in tracks.values()):
+        return False
+    figure = Figure(figsize=(plots.WIDTH_IN, 7.0), layout="constrained")
+    ax = figure.subplots()
+    for quality, (label, colour) in plots.QUALITY_STYLE.items():
+        keep = fixes.get("quality", np.zeros(0)) == quality
+        if keep.any():
+            ax.scatter(fixes["e"][keep], fixes["n"][keep], s=12, color=colour, alpha=0.7, lw=0, label=label, zorder=5)
+    for i, (name, track) in enumerate(tracks.items()):
+        style = "--" if name in tree.get("matchers", {}) else "-"
+        ax.plot(track.x, track.y, style, color=plots.TRACK_COLOURS[i % len(plots.TRACK_COLOURS)], lw=1.4, label=name, zorder=4)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=9)
+    with atomic_path(run_dir / MAP) as tmp:
+        figure.savefig(tmp, format="png", dpi=plots.DPI)
+    return True

@@ -1,0 +1,181 @@
+"""`replay(recording, scenario, out_dir)`: a scenario's matchers and estimators over a real recording, no truth.
+
+The recording (a rosbag2 or ROS 1 bag, or a Velodyne HDL-32E pcap) gives the scans and fixes in
+time order; scenarios.feed runs them through the scenario's matchers and estimators with the calls
+of a simulated run. Everything the scenario says about the world and the sensors' simulation is
+unused, except the world's geodetic origin (the ENU frame), the GNSS epoch (the time base) and the
+boat's configuration (lidar mount, antenna offset). Matcher odometry is chained from identity at
+the first scan, then moved as a whole onto the first pose any estimator reports (at that scan or
+the matcher's first after it); without any estimate it stays chained from identity at the
+world origin. The run directory is written under a hidden name and renamed when complete:
+
+    scenario.toml  metrics.json (scenarios.replay.metrics)  <id>.tum per estimator and matcher
+    gps.csv (every fix with each verdict)  gps.nmea (the recorded sentences, when there are any)
+    report.md  report.html  plots/map.png
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import resource
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+from scipy.spatial.transform import Rotation
+
+import scenarios
+import worlds
+from scenarios import files
+from scenarios import metrics as run_metrics
+from scenarios.export import check_out, staged_dir
+from scenarios.feed import Feed
+from scenarios.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.record import Recorder, RunRecord
+from scenarios.replay import bag, pcap
+from scenarios.replay import metrics as replay_metrics
+from scenarios.replay.recording import Place, Recording
+from scenarios.runner import RunFailed, RunInterrupted
+from scenarios.spec import Scenario
+from scenarios.stream import ScanEvent
+
+PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
+"""libpcap file magic numbers (microsecond and nanosecond, either byte order)."""
+
+
+@dataclass
+class ReplayResult:
+    """A finished replay: the scenario and recording it used, where its run directory is, and its metrics tree."""
+
+    scenario: Scenario
+    recording: Recording
+    out_dir: Path
+    metrics: dict
+
+    @property
+    def report(self) -> Path:
+        """The HTML report's path (written when the replay was asked for a report)."""
+        return self.out_dir / "report.html"
+
+
+def replay(recording: str | os.PathLike, scenario: Scenario | str | os.PathLike, out_dir: str | os.PathLike | None = None, *,
+           lidar_topic: str | None = None, gps_topic: str | None = None, workers: int = 1, report: bool = True,
+           progress: Callable[[float, float, float, int], None] | None = None) -> ReplayResult:
+    """Replay `recording` through `scenario`'s matchers and estimators into a run directory (default runs/replay-<name>-<UTC time>/).
+
+    A recording that cannot be read, a topic that is not in it or that is ambiguous, a capture
+    without data packets: ValueError, one line, nothing written. workers: processes for the
+    matchers (1: all in this one). progress, if given, is called as progress(t, t_start, t_end, scans).
+    """
+    scenario = scenario if isinstance(scenario, Scenario) else scenarios.load(scenario)
+    path = Path(recording)
+    out = Path(out_dir) if out_dir is not None else Path("runs") / f"replay-{path.stem}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+    check_out(out, directory=True)
+    world = worlds.load(scenario.world, **scenario.world_params)
+    place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg)
+    opened = open_recording(path, place, lidar_topic, gps_topic)
+    with staged_dir(out) as tmp:
+        tree = replay_into(scenario, opened, tmp, workers, progress)
+        if report:
+            from scenarios.replay import report as report_module
+
+            report_module.write(tmp)
+    return ReplayResult(scenario, opened, out, tree)
+
+
+def open_recording(path: Path, place: Place, lidar_topic: str | None, gps_topic: str | None) -> Recording:
+    """The recording at `path`: a capture by its name or its libpcap magic number, else a bag."""
+    if path.suffix.lower() in (".pcap", ".pcapng") or (path.is_file() and magic(path) in PCAP_MAGIC):
+        if lidar_topic or gps_topic:
+            raise ValueError(f"{path}: a pcap has no topics (--lidar-topic and --gps-topic are for bags)")
+        return pcap.read(path, place)
+    return bag.read(path, place, lidar_topic, gps_topic)
+
+
+def magic(path: Path) -> bytes:
+    """The file's first four bytes."""
+    with path.open("rb") as handle:
+        return handle.read(4)
+
+
+def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress) -> dict:
+    """Stream the recording through the matchers and estimators and write the run directory's data files into `tmp`."""
+    wall_start = time.perf_counter()
+    recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], mount(scenario))
+    setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
+    start = np.eye(4)
+    now = recording.t_start
+    with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
+        feed = Feed(scenario, pool, recorder, lambda stamp: start, nmea, lambda event: list(event.sentences), recording.t_start)
+        try:
+            for event in recording.events():
+                now = event.stamp
+                feed.push(event)
+                if progress is not None and isinstance(event, ScanEvent):
+                    progress(now, recording.t_start, recording.t_end, feed.scans)
+            feed.finish()
+        except KeyboardInterrupt:
+            raise RunInterrupted(f"interrupted at t={now:.1f} s (scan {feed.scans}); nothing written") from None
+        except (ValueError, RuntimeError, OSError) as exc:
+            raise RunFailed(f"{recording.path}: scan {feed.scans} at t={now:.2f} s: {exc}") from None
+        pool.close()
+        workers_rss, lanes = pool.workers_rss_mb, pool.lanes
+    if not (tmp / "gps.nmea").stat().st_size:
+        (tmp / "gps.nmea").unlink()
+    rec = anchored(recorder.finish([]), [e.id for e in scenario.estimators])
+    wall = time.perf_counter() - wall_start
+    geo = recording.geo
+    run_info = {
+        "scenario": scenario.name, "scenario_hash": scenario.hash,
+        "recording": {"path": str(recording.path), "format": recording.format, "lidar": recording.lidar_source, "gps": recording.gps_source,
+                      "time_zero_utc": geo.utc(0.0).isoformat(), "origin": list(geo.origin), "origin_from": geo.origin_source},
+        "t_start": recording.t_start, "t_end": recording.t_end, "duration_s": recording.t_end - recording.t_start,
+        "wall_s": wall, "realtime_factor": (recording.t_end - recording.t_start) / wall if wall > 0 else math.nan,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0 + workers_rss,
+        "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes, "failures": rec.failures,
+    }
+    tree = run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float)))
+    (tmp / "scenario.toml").write_text(f"# resolved scenario {scenario.hash}: its matchers and estimators replayed over {recording.path}\n"
+                                       + tomli_w.dumps(scenario.resolved()))
+    (tmp / "metrics.json").write_text(json.dumps(tree, indent=2) + "\n")
+    for eid, poses in rec.estimates.items():
+        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)
+    for mid, track in rec.matches.items():
+        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
+    files.write_gps_csv(tmp / "gps.csv", rec, truth=False)
+    return tree
+
+
+def mount(scenario: Scenario) -> np.ndarray:
+    """base_link <- lidar of the scenario's boat (its [vessel] mount_xyz and mount_rpy_deg)."""
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_euler("xyz", scenario.vessel.mount_rpy_deg, degrees=True).as_matrix()
+    out[:3, 3] = scenario.vessel.mount_xyz
+    return out
+
+
+def anchored(rec: RunRecord, estimator_ids: list[str]) -> RunRecord:
+    """The record with each matcher's odometry (chained from identity) moved onto the first estimate (see the module docstring)."""
+    first = {eid: np.flatnonzero(np.isfinite(rec.estimates[eid]).all(axis=(1, 2))) for eid in estimator_ids}
+    ready = [(index[0], order, eid) for order, (eid, index) in enumerate(first.items()) if len(index)]
+    if not ready:
+        return rec
+    start, _, eid = min(ready)
+    estimate = rec.estimates[eid]
+    matches = {}
+    for mid, track in rec.matches.items():
+        usable = np.isfinite(track.pose).all(axis=(1, 2)) & np.isfinite(estimate).all(axis=(1, 2))
+        usable[:start] = False
+        if not usable.any():
+            matches[mid] = track
+            continue
+        k = int(np.argmax(usable))
+        matches[mid] = dataclasses.replace(track, pose=estimate[k] @ np.linalg.inv(track.pose[k]) @ track.pose)
+    return dataclasses.replace(rec, matches=matches)

@@ -1,0 +1,288 @@
+"""Replay of recordings: a simulated run exported to a rosbag2 bag and to a Velodyne pcap, replayed through the same
+scenario, gives the run's estimates again (the bag exactly, the pcap within its quantisation); topics are picked as
+KISS-ICP picks them; the readers' field variants; bad input is one line and writes nothing."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+import struct
+from datetime import datetime, timezone
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Writer
+from scipy.spatial.transform import Rotation
+
+import scenarios
+import sim
+import worlds
+from scenarios import files
+from scenarios.export import export
+from scenarios.export.ros_messages import header, typestore
+from scenarios.plots import read_csv
+from scenarios.replay import clouds, fixes, replay
+from scenarios.replay.recording import Geo, Place, unix_ns
+from sim.geodesy import LocalFrame
+from sim.gnss_fix import GnssFix, SatelliteReport
+from sim.lidar import HDL32E_ELEVATION_DEG
+
+STRETCH = "stretch={start_m = 350.0, end_m = 356.0}"  # canal_multipath: 3.1 s, 31 scans, 16 fixes (NLOS, 14 m off)
+SMOOTHED = ("hdop_switch", "ekf", "pf")
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """The simulated run, its rosbag2 and pcap exports, and their replays. The estimators that align their start on
+    GPS travel are given the true start pose, so that all of them have estimates over these 3 s."""
+    root = tmp_path_factory.mktemp("replay")
+    scenario = scenarios.load("canal_multipath", set=[STRETCH])
+    trajectory = sim.Trajectory(worlds.load(scenario.world, **scenario.world_params), seed=scenario.seed,
+                                **scenario.vessel.model_dump(exclude={"seed"}))
+    pose = trajectory.pose(scenario.stretch.times(trajectory)[0])
+    start = f"[{pose[0, 3]:.4f}, {pose[1, 3]:.4f}, {math.degrees(math.atan2(pose[1, 0], pose[0, 0])):.4f}]"
+    scenario = scenarios.load("canal_multipath", set=[STRETCH, *(f"estimators.{e}.params.initial_pose={start}" for e in SMOOTHED)])
+    run = scenarios.run(scenario, root / "run", workers=1, report=False)
+    export(run.out_dir, "rosbag2", root / "bag")
+    export(run.out_dir, "pcap", root / "run.pcap")
+    return {"root": root, "scenario": scenario, "run": run.out_dir,
+            "bag": replay(root / "bag", scenario, root / "replay-bag", workers=1, report=True),
+            "pcap": replay(root / "run.pcap", scenario, root / "replay-pcap", workers=1, report=False)}
+
+
+def tum(path) -> np.ndarray:
+    """A TUM file's rows."""
+    return files.read_tum(path)
+
+
+def poses(rows: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) poses of TUM rows."""
+    out = np.tile(np.eye(4), (len(rows), 1, 1))
+    out[:, :3, :3] = Rotation.from_quat(rows[:, 4:]).as_matrix()
+    out[:, :3, 3] = rows[:, 1:4]
+    return out
+
+
+def odometry(rows: np.ndarray) -> np.ndarray:
+    """The poses relative to the first (a matcher's odometry, whatever it was chained from)."""
+    p = poses(rows)
+    return np.linalg.inv(p[0]) @ p
+
+
+def ids(scenario) -> tuple[list[str], list[str]]:
+    """Estimator ids and matcher ids."""
+    return [e.id for e in scenario.estimators], [m.id for m in scenario.matchers]
+
+
+def test_bag_replay_gives_the_simulated_estimates(recorded):
+    run, out = recorded["run"], recorded["bag"].out_dir
+    estimators, matchers = ids(recorded["scenario"])
+    for eid in estimators:
+        want, got = tum(run / f"{eid}.tum"), tum(out / f"{eid}.tum")
+        assert len(want) >= 30 and got.shape == want.shape
+        np.testing.assert_array_equal(got[:, 0], want[:, 0])
+        # identical to the files' print precision (1 um, 1e-9): NMEA's rounding is undone by the NavSatFix of each epoch
+        np.testing.assert_allclose(got[:, 1:], want[:, 1:], rtol=0, atol=1.5e-6)
+    for mid in matchers:
+        want, got = tum(run / f"{mid}.tum"), tum(out / f"{mid}.tum")
+        np.testing.assert_array_equal(got[:, 0], want[:, 0])
+        # chained from the truth in simulation, from the first estimate here: the same odometry (rounded at other digits)
+        np.testing.assert_allclose(odometry(got), odometry(want), rtol=0, atol=2e-6)
+    sim_fixes, replay_fixes = read_csv(run / "gps.csv"), read_csv(out / "gps.csv")
+    for column in ("t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop",
+                   *(f"{e}.trusted" for e in estimators), *(f"{e}.statistic" for e in estimators if e != "ekf")):
+        np.testing.assert_array_equal(replay_fixes[column], sim_fixes[column], err_msg=column)
+    # the ekf's C/N0 monitor reads GSV's whole dB-Hz and degrees: the same verdicts, a statistic a little off
+    np.testing.assert_allclose(replay_fixes["ekf.statistic"], sim_fixes["ekf.statistic"], rtol=0, atol=1.5)
+    assert (out / "gps.nmea").read_bytes() == (run / "gps.nmea").read_bytes()  # the recorded sentences, verbatim
+
+
+def test_pcap_replay_within_its_quantisation(recorded):
+    run, out = recorded["run"], recorded["pcap"].out_dir
+    for mid in ids(recorded["scenario"])[1]:
+        want, got = tum(run / f"{mid}.tum"), tum(out / f"{mid}.tum")
+        np.testing.assert_array_equal(got[:, 0], want[:, 0])  # scans cut at the revolution start, stamped to the microsecond
+        a, b = odometry(want), odometry(got)
+        assert np.abs(a[:, :3, 3] - b[:, :3, 3]).max() < 0.01  # measured 3.0 mm over 6 m (2 mm range, 0.01 deg azimuth)
+        angle = Rotation.from_matrix(np.linalg.inv(a[:, :3, :3]) @ b[:, :3, :3]).magnitude()
+        assert np.degrees(angle).max() < 0.05  # measured 0.02 deg
+    want, got = tum(run / "ekf.tum"), tum(out / "ekf.tum")
+    assert np.hypot(*(want[:, 1:3] - got[:, 1:3]).T).max() < 0.01  # odometry only in these 3 s (its monitor trusts no fix yet): 3.9 mm
+    # GPRMC's time of 0.01 s puts each fix 1.1 ms before the scan it shares its stamp with in simulation, so gps_only
+    # takes it a scan earlier: its pose at scan k is the simulated one at scan k + 1, to RMC's 5 decimals of minutes
+    want, got = tum(run / "gps_only.tum"), tum(out / "gps_only.tum")
+    assert len(got) == len(want) + 1
+    assert np.hypot(*(want[:, 1:3] - got[:-1, 1:3]).T).max() < 0.015
+    sim_fixes, replay_fixes = read_csv(run / "gps.csv"), read_csv(out / "gps.csv")
+    assert np.abs(replay_fixes["t"] - sim_fixes["t"]).max() <= 0.0051
+    assert np.hypot(replay_fixes["e"] - sim_fixes["e"], replay_fixes["n"] - sim_fixes["n"]).max() < 0.015
+    assert (replay_fixes["hdop"] == fixes.NOMINAL_HDOP).all() and (replay_fixes["quality"] == sim_fixes["quality"]).all()
+
+
+def test_run_directory_holds_no_truth(recorded):
+    result = recorded["bag"]
+    estimators, matchers = ids(recorded["scenario"])
+    names = {p.name for p in result.out_dir.iterdir()}
+    assert names == {"scenario.toml", "metrics.json", "gps.csv", "gps.nmea", "report.md", "report.html", "plots",
+                     *(f"{k}.tum" for k in estimators + matchers)}
+    assert not (recorded["pcap"].out_dir / "report.md").exists()
+    assert not [p for p in recorded["root"].iterdir() if p.name.startswith(".")]
+    m = result.metrics
+    assert m["run"]["scans"] == 31 and m["run"]["fixes"] == 16 and m["run"]["failures"] == []
+    assert m["run"]["recording"]["origin_from"] == "world" and m["run"]["recording"]["time_zero_utc"].startswith("2024-06-15T14:00:00")
+    assert set(m["matchers"]["gicp"]) == {"success", "gated", "degenerate", "hz", "ms", "points", "failed"}
+    node = m["estimators"]["gps_only"]["against_gps"]
+    assert node["fixes"] == 15 and node["trusted"] == 1.0 and node["max"] < 1.0  # one scan behind its fixes at most
+    assert "err_h" not in read_csv(result.out_dir / "gps.csv")
+    assert "Estimators against GPS" in (result.out_dir / "report.md").read_text()
+
+
+def copy_bag(src, dst, seconds: float, duplicate: dict[str, str] | None = None, edit=None) -> None:
+    """The bag's first `seconds` again as `dst`, with topics `duplicate`d and messages changed by edit(topic, index, msg)."""
+    store, duplicate = typestore(), duplicate or {}
+    with AnyReader([src], default_typestore=store) as reader:
+        writer = Writer(dst, version=8)
+        with writer:
+            out = {c.topic: writer.add_connection(c.topic, c.msgtype, typestore=store) for c in reader.connections}
+            out |= {new: writer.add_connection(new, reader.topics[of].msgtype, typestore=store) for new, of in duplicate.items()}
+            counts: dict[str, int] = {}
+            for c, t, raw in reader.messages():
+                if t > reader.start_time + seconds * 1e9:
+                    break
+                if edit is not None:
+                    msg = edit(c.topic, counts.setdefault(c.topic, 0), reader.deserialize(raw, c.msgtype))
+                    raw = bytes(store.serialize_cdr(msg, c.msgtype))
+                counts[c.topic] = counts.get(c.topic, 0) + 1
+                for topic in [c.topic, *(new for new, of in duplicate.items() if of == c.topic)]:
+                    writer.write(out[topic], t, raw)
+
+
+def test_topics_picked_as_kiss_icp_picks_them(recorded, tmp_path):
+    bag = tmp_path / "two_clouds"
+    copy_bag(recorded["root"] / "bag", bag, 0.55, duplicate={"/points_raw": "/velodyne_points"})
+    scenario = recorded["scenario"]
+    with pytest.raises(ValueError, match=r"2 PointCloud2 topics \(/points_raw, /velodyne_points\): pick one with --lidar-topic") as error:
+        replay(bag, scenario, tmp_path / "out")
+    assert "\n" not in str(error.value)
+    with pytest.raises(ValueError, match=r"no PointCloud2 topic '/lidar'; the bag's: /points_raw \(PointCloud2\), /velodyne_points"):
+        replay(bag, scenario, tmp_path / "out", lidar_topic="/lidar")
+    with pytest.raises(ValueError, match=r"no Sentence or NavSatFix topic '/velodyne_points'"):
+        replay(bag, scenario, tmp_path / "out", lidar_topic="/points_raw", gps_topic="/velodyne_points")
+    picked = replay(bag, scenario, tmp_path / "out", lidar_topic="/points_raw", workers=2, report=False)  # gicp in a worker process
+    assert picked.recording.lidar_source == "/points_raw" and picked.metrics["run"]["scans"] == 6 and picked.metrics["run"]["workers"] == 2
+    want = odometry(tum(recorded["run"] / "gicp.tum")[:6])
+    np.testing.assert_allclose(odometry(tum(picked.out_dir / "gicp.tum")), want, rtol=0, atol=2e-6)
+    # NavSatFix alone: positions and HDOP exact, no satellites: gps_only as simulated
+    navsat = replay(bag, scenario, tmp_path / "navsat", lidar_topic="/velodyne_points", gps_topic="/gps/fix", report=False)
+    want, got = tum(recorded["run"] / "gps_only.tum"), tum(navsat.out_dir / "gps_only.tum")
+    np.testing.assert_allclose(got[:, 1:], want[: len(got), 1:], rtol=0, atol=1.5e-6)
+    assert not (navsat.out_dir / "gps.nmea").exists()
+
+
+def test_bad_input_is_one_line_and_writes_nothing(recorded, tmp_path):
+    scenario = recorded["scenario"]
+    (tmp_path / "notes.txt").write_text("not a bag\n")
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").touch()
+    (tmp_path / "header.pcap").write_bytes(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1))
+    shutil.copy(recorded["root"] / "run.pcap", tmp_path / "copy.pcap")
+    cases = [("missing", None, "no such bag"), ("notes.txt", None, "not a readable bag"), ("empty", None, "not a readable bag"),
+             ("header.pcap", None, "no Velodyne data packets"), ("copy.pcap", "/velodyne_points", "a pcap has no topics")]
+    before = set(tmp_path.iterdir())
+    for name, topic, message in cases:
+        with pytest.raises(ValueError, match=message) as error:
+            replay(tmp_path / name, scenario, tmp_path / "out", lidar_topic=topic)
+        assert "\n" not in str(error.value)
+    with pytest.raises(ValueError, match="not empty"):
+        replay(tmp_path / "copy.pcap", scenario, tmp_path / "full")
+    assert set(tmp_path.iterdir()) == before
+
+
+def test_a_bad_scan_is_a_recorded_failure(recorded, tmp_path):
+    def break_third_cloud(topic, index, msg):
+        """Rename the third cloud's x field."""
+        if topic != "/velodyne_points" or index != 2:
+            return msg
+        return dataclasses.replace(msg, fields=[dataclasses.replace(f, name="q" if f.name == "x" else f.name) for f in msg.fields])
+
+    copy_bag(recorded["root"] / "bag", tmp_path / "bad", 0.55, edit=break_third_cloud)
+    result = replay(tmp_path / "bad", recorded["scenario"], tmp_path / "out", report=False)
+    assert result.metrics["run"]["scans"] == 5
+    [failure] = result.metrics["run"]["failures"]
+    assert failure["component"] == "scan" and failure["id"] == "/velodyne_points" and "no field x" in failure["reason"]
+    assert failure["stamp"] == pytest.approx(tum(recorded["run"] / "gicp.tum")[2, 0], abs=1e-6)
+
+
+def cloud(points: np.ndarray, ns: int = 5_000_000_000):
+    """A PointCloud2 of a structured array (each field a PointField at its offset)."""
+    store = typestore()
+    field = store.types["sensor_msgs/msg/PointField"]
+    kinds = {"f4": 7, "f8": 8, "u2": 4, "u4": 6, "u1": 2}
+    fields = [field(name=n, offset=o, datatype=kinds[dt.str[1:]], count=1) for n, (dt, o) in points.dtype.fields.items()]
+    return store.types["sensor_msgs/msg/PointCloud2"](
+        header=header(store, ns, "lidar"), height=1, width=len(points), fields=fields, is_bigendian=False,
+        point_step=points.dtype.itemsize, row_step=points.dtype.itemsize * len(points), data=points.view(np.uint8), is_dense=True)
+
+
+def test_cloud_field_variants():
+    elevation = np.radians(HDL32E_ELEVATION_DEG)
+    xyz = 10.0 * np.stack([np.cos(elevation) * np.cos(0.3), np.cos(elevation) * np.sin(0.3), np.sin(elevation)], axis=1)
+    bare = np.zeros(32, [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("i", "u1"), ("t", "<u4")])
+    bare["x"], bare["y"], bare["z"], bare["i"], bare["t"] = *xyz.T, 7, np.arange(32) * 1000
+    scan = clouds.scan(cloud(bare), 2.0, 5.0)
+    np.testing.assert_array_equal(scan.points["ring"], np.arange(32))  # laser ids from elevation, without a ring field
+    np.testing.assert_allclose(scan.points["time"], np.arange(32) * 1e-6)  # ouster's integer nanoseconds
+    assert scan.stamp == 2.0 and (scan.points["intensity"] == 7).all()
+    hesai = np.zeros(2, [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("timestamp", "<f8")])
+    hesai["x"], hesai["z"], hesai["timestamp"] = 5.0, (0.0, 4.0), (1.7e9 + 0.25, 1.7e9 + 0.5)  # absolute; 38.7 deg: no HDL-32E beam
+    scan = clouds.scan(cloud(hesai), 2.0, 1.7e9)
+    np.testing.assert_allclose(scan.points["time"], [0.25, 0.5])
+    assert (scan.points["ring"] == 0).all() and (scan.points["intensity"] == 0).all()
+    no_x = np.zeros(2, [("y", "<f4"), ("z", "<f4")])
+    with pytest.raises(ValueError, match="no field x"):
+        clouds.scan(cloud(no_x), 0.0, 0.0)
+    short = dataclasses.replace(cloud(bare), data=bare.view(np.uint8)[:100])
+    with pytest.raises(ValueError, match="too few"):
+        clouds.scan(short, 0.0, 0.0)
+
+
+def test_nmea_and_rmc_read_back():
+    origin = (42.3539, -71.1106, 5.0)
+    epoch = datetime(2024, 6, 15, 14, tzinfo=timezone.utc)
+    geo = Geo.choose(Place(origin, epoch), unix_ns(epoch) + 5_000_000_000, None)
+    enu = np.array([120.0, -35.0, 12.0])
+    lat, lon, alt = LocalFrame.at(*origin).geodetic_of_enu(enu)
+    sats = (SatelliteReport(3, 120.4, 35.6, 44.3, True), SatelliteReport(7, 250.0, 12.2, 0.0, False))
+    fix = GnssFix(stamp=12.5, lat=lat, lon=lon, alt=alt, enu=enu, quality=1, num_sats=1, hdop=0.876, vdop=1.234, pdop=1.5, sats=sats,
+                  utc="2024-06-15T14:00:12.500000+00:00", speed_mps=2.0, course_deg=90.0)
+    got = fixes.from_nmea(12.5, fix.nmea(), geo)
+    assert got.quality == 1 and got.num_sats == 1 and got.hdop == 0.88 and got.vdop == 1.23 and got.truth is None
+    assert np.abs(got.enu - enu).max() < 0.015 and got.course_deg == 90.0 and abs(got.speed_mps - 2.0) < 1e-3
+    assert got.sats == (SatelliteReport(3, 120.0, 36.0, 44.0, True), SatelliteReport(7, 250.0, 12.0, 0.0, False))
+    for quality in (1, 6, 0):
+        rmc = fixes.from_nmea(12.5, [sim.nmea.rmc(dataclasses.replace(fix, quality=quality))], geo)
+        assert rmc.quality == quality and (rmc.hdop == fixes.NOMINAL_HDOP)
+        assert abs(rmc.enu[2]) < 0.01 if quality else np.isnan(rmc.enu).all()  # no altitude: the origin's height
+    epochs = fixes.Epochs()
+    lines = fix.nmea() + fixes_later(fix).nmea()
+    closed = [epochs.add(k, line) for k, line in enumerate(lines)]
+    assert [c for c in closed if c] == [(list(range(4)), fix.nmea())] and epochs.close() == (list(range(4, 8)), lines[4:])
+
+
+def fixes_later(fix: GnssFix) -> GnssFix:
+    """The same fix 0.2 s later."""
+    return dataclasses.replace(fix, stamp=fix.stamp + 0.2, utc="2024-06-15T14:00:12.700000+00:00")
+
+
+def test_time_base_and_origin_rules():
+    epoch = datetime(2024, 6, 15, 14, tzinfo=timezone.utc)
+    place = Place((42.3539, -71.1106, 5.0), epoch)
+    near = Geo.choose(place, unix_ns(epoch) + 3_000_000_000, (42.36, -71.10, 3.0))
+    assert near.zero_ns == unix_ns(epoch) and near.origin_source == "world" and near.seconds(unix_ns(epoch) + 1_500_000_000) == 1.5
+    later = datetime(2025, 3, 1, 9, tzinfo=timezone.utc)
+    far = Geo.choose(place, unix_ns(later), (48.85, 2.35, 35.0))
+    assert far.zero_ns == unix_ns(later) and far.origin == (48.85, 2.35, 35.0) and far.origin_source == "first fix"
+    assert np.abs(far.enu(48.85, 2.35, 35.0)).max() < 1e-6

@@ -317,6 +317,41 @@ def export(
                   f"({result.scans / max(result.seconds, 1e-9):.0f} scans/s)", highlight=False)
 
 
+@app.command()
+def replay(
+    recording: Path = typer.Argument(..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too) or a Velodyne HDL-32E pcap"),
+    scenario: str = typer.Option(..., help="the scenario whose matchers, estimators, mount and world origin to use (name or .toml)"),
+    out: Path = typer.Option(None, help="run directory (default runs/replay-<name>-<UTC time>/)"),
+    lidar_topic: str = typer.Option(None, help="the PointCloud2 topic (default: the only one)"),
+    gps_topic: str = typer.Option(None, help="the NMEA Sentence or NavSatFix topic (default: the only one)"),
+    workers: int = typer.Option(1, min=1, help="processes: 2 overlaps matching with reading"),
+    no_report: bool = typer.Option(False, "--no-report", help="skip report.md and report.html"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """Run a scenario's matchers and estimators over a real recording (no truth): a run directory and a report."""
+    from scenarios import load as load_scenario
+    from scenarios.progress import RunProgress
+    from scenarios.replay import replay as replay_recording
+    from scenarios.runner import RunFailed, RunInterrupted
+
+    with user_errors():
+        if not recording.exists():
+            raise ValueError(f"{recording}: no such bag or pcap")
+        scenarios_spec = load_scenario(scenario)
+    try:
+        with user_errors(), RunProgress(recording.name, console, quiet) as progress:
+            result = replay_recording(recording, scenarios_spec, out, lidar_topic=lidar_topic, gps_topic=gps_topic, workers=workers,
+                                      report=not no_report, progress=progress.update)
+    except RunInterrupted as exc:
+        errors.print(f"[bold yellow]stopped:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+        raise typer.Exit(130) from None
+    except RunFailed as exc:
+        errors.print(f"[bold red]replay failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+        raise typer.Exit(1) from None
+    target = result.report if result.report.exists() else result.out_dir
+    console.print(f"replayed {result.metrics['run']['scans']} scans: {target}", highlight=False)
+
+
 @scenarios_app.command("list")
 def scenarios_list() -> None:
     """Names and one-line descriptions of the library's scenarios."""

@@ -286,3 +286,21 @@ def test_time_base_and_origin_rules():
     far = Geo.choose(place, unix_ns(later), (48.85, 2.35, 35.0))
     assert far.zero_ns == unix_ns(later) and far.origin == (48.85, 2.35, 35.0) and far.origin_source == "first fix"
     assert np.abs(far.enu(48.85, 2.35, 35.0)).max() < 1e-6
+
+
+def test_the_replay_command_writes_a_run_directory_and_refuses_bad_input_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    from scenarios.export import export
+
+    export("canal_multipath", "mcap", tmp_path / "bag", set=["stretch={start_s = 60.0, end_s = 61.0}"])
+    cli = [sys.executable, "-m", "scenarios.cli", "replay"]
+    ok = subprocess.run([*cli, "bag", "--scenario", "canal_multipath", "--out", "run", "--quiet", "--no-report"],
+                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert ok.returncode == 0, ok.stderr
+    assert "replayed 10 scans" in ok.stdout and (tmp_path / "run" / "gicp.tum").exists()
+    for args, message in ((["nothing", "--scenario", "canal_multipath"], "no such bag or pcap"),
+                          (["bag", "--scenario", "canal_multipath", "--lidar-topic", "/x"], "/x")):
+        bad = subprocess.run([*cli, *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1

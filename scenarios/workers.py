@@ -46,12 +46,15 @@ def _serve(conn: Connection) -> None:
     """Worker loop: receive (function, argument), send back (True, value) or (False, reason); None ends it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle; it terminates us
     signal.signal(signal.SIGTERM, raise_terminated)
-    while (job := conn.recv()) is not None:
-        fn, arg = job
-        try:
-            conn.send((True, fn(arg)))
-        except Exception as exc:  # the job's failure, reported; the worker serves on
-            conn.send((False, f"{type(exc).__name__}: {exc}"))
+    try:
+        while (job := conn.recv()) is not None:
+            fn, arg = job
+            try:
+                conn.send((True, fn(arg)))
+            except Exception as exc:  # the job's failure, reported; the worker serves on
+                conn.send((False, f"{type(exc).__name__}: {exc}"))
+    except (Terminated, EOFError):  # stopped by the parent (the job unwound and cleaned up), or the parent is gone
+        return
 
 
 @dataclass

@@ -158,6 +158,7 @@ def test_the_csv_holds_the_same_values_as_the_parquet_table(local_sweep):
                 assert c[key] == str(value)
 
 
+@pytest.mark.slow  # 12 s alone but minutes beside the fast suite (Ray's worker start-up starves); the local path covers the table code
 def test_the_ray_backend_gives_the_same_table_to_the_last_bit(local_sweep, tmp_path):
     pytest.importorskip("ray")
     ray_result = sweeping.run_sweep(small_plan(), tmp_path / "ray", workers=2, backend="ray", lean=True)

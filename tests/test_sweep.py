@@ -237,7 +237,10 @@ def test_a_killed_sweep_leaves_a_consistent_table_and_the_same_command_completes
 def test_ctrl_c_stops_the_sweep_with_the_finished_runs_in_the_table(tmp_path):
     args = ["sweep", "canal_multipath", "--grid", "lidar.range_noise_m=0.01,0.02,0.03", "--set", SHORT, "--workers", "1",
             "--lean", "--quiet", "--out", "sw"]
-    proc = subprocess.Popen([*RIVERBENCH, *args], cwd=tmp_path, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # a shell without job control starts background jobs with SIGINT ignored, and Python keeps an ignored SIGINT:
+    # give the sweep the default disposition a terminal's foreground process has, whatever runs the tests
+    proc = subprocess.Popen([*RIVERBENCH, *args], cwd=tmp_path, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     table = tmp_path / "sw" / "results.parquet"
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and (not table.exists() or pq.read_table(table).num_rows < 1):

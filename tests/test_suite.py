@@ -16,6 +16,7 @@ runner = CliRunner()
 ESTIMATOR_IN = re.compile(r"^estimators\.([A-Za-z_0-9]+)\.")
 
 
+@pytest.mark.early  # the longest test (~4 min): started first, the other worker runs the rest meanwhile
 def test_fast_suite_of_the_library_passes_and_writes_junit(tmp_path):
     junit = tmp_path / "suite.xml"
     result = runner.invoke(app, ["suite", "--fast", "--workers", "2", "--junit", str(junit), "--out", str(tmp_path / "runs")])

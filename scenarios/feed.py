@@ -38,8 +38,16 @@ class BadScan:
     reason: str
 
 
+class RunFailed(RuntimeError):
+    """The run could not go on (the simulation or the recording failed); nothing was written."""
+
+
+class RunInterrupted(RuntimeError):
+    """Ctrl-C: the run stopped cleanly; nothing was written."""
+
+
 class Feed:
-    """push(event) for each event in time order, then finish(); `recorder` holds what came out."""
+    """drive(events), or push(event) for each event in time order then finish(); `recorder` holds what came out."""
 
     def __init__(self, scenario: Scenario, pool: MatcherPool, recorder: Recorder, base_pose: Callable[[float], np.ndarray],
                  nmea: TextIO, sentences: Callable[[object], list[str]], t_start: float) -> None:
@@ -65,6 +73,20 @@ class Feed:
     def finish(self) -> None:
         """Process every pending event."""
         self._drain(0)
+
+    def drive(self, events, on_event: Callable[[object], None], failures: tuple[type[Exception], ...], where: str = "") -> None:
+        """Push every event and finish; Ctrl-C becomes RunInterrupted and a `failures` exception RunFailed, both naming the scan and time."""
+        now = math.nan
+        try:
+            for event in events:
+                now = event.stamp
+                self.push(event)
+                on_event(event)
+            self.finish()
+        except KeyboardInterrupt:
+            raise RunInterrupted(f"interrupted at t={now:.1f} s (scan {self.scans}); nothing written") from None
+        except failures as exc:
+            raise RunFailed(f"{where}scan {self.scans} at t={now:.2f} s: {exc}") from None
 
     def _drain(self, keep_scans: int) -> None:
         """Process queued events in order while more than `keep_scans` scans are queued, then the fixes at the front."""

@@ -29,7 +29,7 @@ import worlds
 from scenarios import files, metrics
 from scenarios import windows as win
 from scenarios.expectations import Outcome
-from scenarios.feed import Feed
+from scenarios.feed import Feed, RunFailed, RunInterrupted  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.matcher_pool import MatcherPool, MatcherSetup
 from scenarios.record import Recorder, RunRecord
 from scenarios.spec import Scenario
@@ -37,14 +37,6 @@ from scenarios.stream import events
 
 RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
 """The numbers of metrics.json's `run` node (besides scenario, scenario_hash, lanes and failures)."""
-
-
-class RunFailed(RuntimeError):
-    """The run could not go on (the simulation itself failed); nothing was written."""
-
-
-class RunInterrupted(RuntimeError):
-    """Ctrl-C: the run stopped cleanly; nothing was written."""
 
 
 @dataclass
@@ -111,20 +103,11 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     t_start, t_end = scenario.stretch.times(trajectory)
     recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], trajectory.mount)
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
-    now = t_start
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, trajectory.pose, nmea, lambda event: event.fix.nmea(), t_start)
-        try:
-            for event in events(world, trajectory, lidar, receiver, t_start, t_end):
-                now = event.stamp
-                feed.push(event)
-                if progress is not None:
-                    progress(now, t_start, t_end, feed.scans)
-            feed.finish()
-        except KeyboardInterrupt:
-            raise RunInterrupted(f"interrupted at t={now:.1f} s (scan {feed.scans}); nothing written") from None
-        except (ValueError, RuntimeError, FloatingPointError) as exc:
-            raise RunFailed(f"scan {feed.scans} at t={now:.2f} s: {exc}") from None
+        feed.drive(events(world, trajectory, lidar, receiver, t_start, t_end),
+                   lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
+                   (ValueError, RuntimeError, FloatingPointError))
         pool.close()
         workers_rss = pool.workers_rss_mb
         lanes = pool.lanes

@@ -42,7 +42,6 @@ from scenarios.record import Recorder, RunRecord
 from scenarios.replay import bag, pcap
 from scenarios.replay import metrics as replay_metrics
 from scenarios.replay.recording import Place, Recording
-from scenarios.runner import RunFailed, RunInterrupted
 from scenarios.spec import Scenario
 from scenarios.stream import ScanEvent
 
@@ -111,20 +110,12 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], mount(scenario))
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
     start = np.eye(4)
-    now = recording.t_start
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, lambda stamp: start, nmea, lambda event: list(event.sentences), recording.t_start)
-        try:
-            for event in recording.events():
-                now = event.stamp
-                feed.push(event)
-                if progress is not None and isinstance(event, ScanEvent):
-                    progress(now, recording.t_start, recording.t_end, feed.scans)
-            feed.finish()
-        except KeyboardInterrupt:
-            raise RunInterrupted(f"interrupted at t={now:.1f} s (scan {feed.scans}); nothing written") from None
-        except (ValueError, RuntimeError, OSError) as exc:
-            raise RunFailed(f"{recording.path}: scan {feed.scans} at t={now:.2f} s: {exc}") from None
+        feed.drive(recording.events(),
+                   lambda event: progress is not None and isinstance(event, ScanEvent)
+                   and progress(event.stamp, recording.t_start, recording.t_end, feed.scans),
+                   (ValueError, RuntimeError, OSError), where=f"{recording.path}: ")
         pool.close()
         workers_rss, lanes = pool.workers_rss_mb, pool.lanes
     if not (tmp / "gps.nmea").stat().st_size:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 OPERATORS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne, "<": operator.lt, ">": operator.gt}
 _SYNTAX = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.\-]*)\s*(<=|>=|==|!=|<|>)\s*(\S+)\s*$")
-TOP_LEVEL = ("run", "gps", "estimators", "matchers")
+TOP_LEVEL = ("run", "gps", "vessel", "estimators", "matchers")
 
 
 @dataclass(frozen=True)

@@ -59,6 +59,15 @@ class Feed:
         self.queue: deque = deque()
         self.scans = 0
 
+    def pose_of(self, estimator_id: str) -> np.ndarray:
+        """An estimator's current pose (NaN when it failed or gives something else than a 4x4 pose)."""
+        if estimator_id in self.dead:
+            return nan_pose()
+        try:
+            return checked_pose(self.estimators[estimator_id].pose)
+        except Exception:  # a plugin's pose may raise anything: steering sees an unknown pose, the scan step records the failure
+            return nan_pose()
+
     def push(self, event) -> None:
         """Take the next event (ScanEvent, BadScan, or a fix event with `.fix`) and process what is due."""
         if isinstance(event, BadScan):

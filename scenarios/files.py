@@ -91,6 +91,16 @@ def write_scans_csv(path: Path, rec: RunRecord) -> None:
             w.writerow(row)
 
 
+def write_vessel_csv(path: Path, log) -> None:
+    """One row per control period (a revolution): the true plane pose, station, cross-track, clearance, nearest part, commands."""
+    with open(path, "w", newline="") as handle:
+        w = csv.writer(handle)
+        w.writerow(["t", "x", "y", "yaw_deg", "station_m", "cross_track_m", "clearance_m", "nearest_part", "cmd_left", "cmd_right"])
+        for t, x, y, yaw, station, cross, clearance, part, left, right in log.rows:
+            w.writerow([f"{t:.3f}", *_fmt((x, y), 3), f"{np.degrees(yaw):.3f}", *_fmt((station, cross, clearance), 3), part,
+                        *_fmt((left, right), 4)])
+
+
 def _fmt1(value: float, digits: int) -> str:
     return "" if not np.isfinite(value) else f"{value:.{digits}f}"
 

@@ -220,11 +220,12 @@ def gps_metrics(fixes: FixTable) -> dict:
     }
 
 
-def compute(rec: RunRecord, windows: list[win.Window], run_info: dict) -> dict:
-    """The metrics tree (NaN where nothing could be measured; written as null in JSON)."""
+def compute(rec: RunRecord, windows: list[win.Window], run_info: dict, vessel: dict) -> dict:
+    """The metrics tree (NaN where nothing could be measured; written as null in JSON); `vessel` from scenarios.vessel_log.metrics."""
     return {
         "run": run_info,
         "gps": gps_metrics(rec.fixes),
+        "vessel": vessel,
         "estimators": {eid: estimator_metrics(rec, eid, windows) for eid in rec.estimates},
         "matchers": {mid: matcher_metrics(rec, mid) for mid in rec.matches},
     }

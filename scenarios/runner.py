@@ -26,14 +26,14 @@ import tomli_w
 
 import sim
 import worlds
-from scenarios import files, metrics
+from scenarios import files, metrics, vessel_log
 from scenarios import windows as win
 from scenarios.expectations import Outcome
 from scenarios.feed import Feed, RunFailed, RunInterrupted  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.matcher_pool import MatcherPool, MatcherSetup
 from scenarios.record import Recorder, RunRecord
 from scenarios.spec import Scenario
-from scenarios.stream import events
+from scenarios.vessel_run import VesselRun
 
 RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
 """The numbers of metrics.json's `run` node (besides scenario, scenario_hash, lanes and failures)."""
@@ -96,16 +96,18 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     wall_start = time.perf_counter()
     world = worlds.load(scenario.world, **scenario.world_params)
     vessel = scenario.vessel.model_dump(exclude={"seed"})
-    trajectory = sim.Trajectory(world, seed=scenario.seed, **vessel)
+    planned = sim.Trajectory(world, seed=scenario.seed, **vessel)
     lidar = sim.HDL32E(seed=scenario.seed, **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
                        rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
-    t_start, t_end = scenario.stretch.times(trajectory)
+    t_start, t_end = scenario.stretch.times(planned)
+    vessel_run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
+    trajectory = vessel_run.trajectory
     recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], trajectory.mount)
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, trajectory.pose, nmea, lambda event: event.fix.nmea(), t_start)
-        feed.drive(events(world, trajectory, lidar, receiver, t_start, t_end),
+        feed.drive(vessel_run.events(feed),
                    lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
                    (ValueError, RuntimeError, FloatingPointError))
         pool.close()
@@ -113,20 +115,25 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         lanes = pool.lanes
     rec = recorder.finish([(w.start_s, w.end_s) for w in scenario.gnss.forced_biases])
     wall = time.perf_counter() - wall_start
+    t_last = float(rec.scan_t[-1]) + lidar.revolution_s if len(rec.scan_t) else t_start
+    sim_s = t_last - t_start
     run_info = {
         "scenario": scenario.name, "scenario_hash": scenario.hash, "seed": scenario.seed,
-        "t_start": t_start, "t_end": t_end, "sim_s": t_end - t_start, "wall_s": wall,
-        "realtime_factor": (t_end - t_start) / wall if wall > 0 else math.nan,
+        "t_start": t_start, "t_end": t_last, "sim_s": sim_s, "wall_s": wall,
+        "realtime_factor": sim_s / wall if wall > 0 else math.nan,
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0 + workers_rss,
         "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes,
         "failures": rec.failures,
     }
-    return _write(scenario, tmp, rec, run_info, 1.0 / receiver.rate_hz, report)
+    vessel_node = vessel_log.metrics(vessel_run.watch.log, scenario.control.clearance_threshold_m, lidar.revolution_s)
+    files.write_vessel_csv(tmp / "vessel.csv", vessel_run.watch.log)
+    return _write(scenario, tmp, rec, run_info, vessel_node, 1.0 / receiver.rate_hz, report)
 
 
-def _write(scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, fix_period: float, report: bool) -> tuple[dict, list[Outcome]]:
+def _write(scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel: dict, fix_period: float,
+           report: bool) -> tuple[dict, list[Outcome]]:
     windows = win.find(rec.fixes, rec.injected, fix_period)
-    tree = metrics.compute(rec, windows, run_info)
+    tree = metrics.compute(rec, windows, run_info, vessel)
     safe = metrics.json_safe(tree)
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]

@@ -20,6 +20,8 @@ import matcher
 import worlds
 from matcher.plugin import is_path as is_plugin_path
 from scenarios.expectations import Expectation
+from sim.autopilot import AutopilotConfig
+from sim.dynamics import WamvDynamics
 from sim.gnss import GnssConfig
 from sim.lidar import HDL32EConfig
 from sim.trajectory import TrajectoryConfig
@@ -164,11 +166,20 @@ def _check_ref(what: str, cid: str, kind: str | None, plugin: str | None) -> Non
 
 
 class Control(BaseModel):
-    """How the vessel moves: `open_loop` follows the route exactly, whatever the estimators believe."""
+    """How the vessel moves. `open_loop`: it follows the route exactly, whatever the estimators
+    believe. `closed_loop`: the WAM-V model driven by the baseline autopilot, steering on the pose
+    of the estimator `steer_on` (or on the truth, the reference), until the end of the stretch, a
+    collision or the time limit. Clearance and cross-track metrics are kept in both modes."""
 
     model_config = ConfigDict(extra="forbid")
 
-    mode: Literal["open_loop"] = Field("open_loop", description="open_loop (closed loop comes with the controller)")
+    mode: Literal["open_loop", "closed_loop"] = Field("open_loop", description="open_loop or closed_loop")
+    steer_on: str = Field("truth", description="closed loop: id of the estimator the autopilot steers on, or 'truth'")
+    autopilot: AutopilotConfig = Field(default_factory=AutopilotConfig, description="gains of the LOS autopilot")
+    dynamics: WamvDynamics = Field(default_factory=WamvDynamics, description="the WAM-V 16 manoeuvring model")
+    current_enu_mps: tuple[float, float] = Field((0.0, 0.0), description="closed loop: uniform water current (east, north), m/s")
+    time_limit_factor: float = Field(2.0, gt=1.0, description="closed loop: the run gives up after this multiple of the stretch's open-loop time")
+    clearance_threshold_m: float = Field(3.0, ge=0, description="vessel.time_below_threshold_s counts the time the hull is closer than this to a structure")
 
 
 class FastVariant(BaseModel):
@@ -263,6 +274,9 @@ class Scenario(BaseModel):
                 est.matcher = matcher_ids[0]
             elif est.matcher not in matcher_ids:
                 raise ValueError(f"estimators.{est.id}.matcher: no matcher with id {est.matcher!r} (have {', '.join(matcher_ids) or 'none'})")
+        steer = self.control.steer_on
+        if self.control.mode == "closed_loop" and steer != "truth" and steer not in [e.id for e in self.estimators]:
+            raise ValueError(f"control.steer_on: no estimator with id {steer!r} (have {', '.join(e.id for e in self.estimators) or 'none'}, or 'truth')")
         ids = {"estimators": set(e.id for e in self.estimators), "matchers": set(matcher_ids)}
         self.expect = [Expectation.parse(text, ids).text for text in self.expect]
         if self.fast is not None:

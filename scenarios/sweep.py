@@ -189,7 +189,7 @@ def write_plan(out_dir: Path, plan: SweepPlan) -> None:
 
 def metric_names(point: SweepPoint) -> set[str]:
     """Every column a run of this point's scenario puts in the table (from an empty run's metrics)."""
-    from scenarios import metrics
+    from scenarios import metrics, vessel_log
     from scenarios.record import Recorder
     from scenarios.runner import RUN_NUMBERS
 
@@ -197,7 +197,7 @@ def metric_names(point: SweepPoint) -> set[str]:
     record = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], np.eye(4)).finish([])
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)
-        tree = metrics.compute(record, [], dict.fromkeys(RUN_NUMBERS, 0.0))
+        tree = metrics.compute(record, [], dict.fromkeys(RUN_NUMBERS, 0.0), vessel_log.metrics(vessel_log.VesselLog(), 0.0, 0.1))
     return set(table.flatten(metrics.json_safe(tree))) | set(table.IDENTITY) - {"scenario", "scenario_hash", "status", "reason", "run_dir"}
 
 

@@ -59,9 +59,7 @@ class Trajectory:
             cfg.sea_state, rng, beam_m=cfg.hull.beam_m, length_m=cfg.hull.length_m
         )
         self.duration = float(brentq(lambda t: self.station(t) - self.end_m, 0.0, 10 * self.end_m / cfg.speed_mps))
-        self.mount = np.eye(4)
-        self.mount[:3, :3] = Rotation.from_euler("xyz", cfg.mount_rpy_deg, degrees=True).as_matrix()
-        self.mount[:3, 3] = cfg.mount_xyz
+        self.mount = mount_matrix(cfg)
 
     @cached_property
     def hull(self) -> trimesh.Trimesh:
@@ -116,6 +114,14 @@ class Trajectory:
             raise ValueError(
                 f"trajectory: time {ts.min():.3f}..{ts.max():.3f} s outside the run 0..{self.duration:.1f} s"
             )
+
+
+def mount_matrix(config: TrajectoryConfig) -> np.ndarray:
+    """4x4 base_link<-lidar from the configured mount position and roll, pitch, yaw."""
+    mount = np.eye(4)
+    mount[:3, :3] = Rotation.from_euler("xyz", config.mount_rpy_deg, degrees=True).as_matrix()
+    mount[:3, 3] = config.mount_xyz
+    return mount
 
 
 def yaw_pitch_roll_matrices(yaw: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:

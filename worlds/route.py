@@ -84,3 +84,27 @@ class Route:
     def station_of(self, xy: np.ndarray) -> float:
         """Arc length of the route vertex nearest to an ENU point."""
         return float(self.s[np.argmin(np.linalg.norm(self.xy - np.asarray(xy)[:2], axis=1))])
+
+    def project(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Station, signed cross-track offset (left of travel positive) and route heading of ENU points (..., 2).
+
+        Each point is projected onto the nearest route segment, so offsets are exact to the sampled
+        polyline (1 m spacing: well under a millimetre from the spline on river bends).
+        """
+        p = np.asarray(xy, dtype=float)[..., :2]
+        flat = p.reshape(-1, 2)
+        parts = [self._project(flat[i:i + 256]) for i in range(0, len(flat), 256)] or [(np.zeros(0),) * 3]
+        return tuple(np.concatenate(col).reshape(p.shape[:-1]) for col in zip(*parts))
+
+    def _project(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        a, d = self.xy[:-1], np.diff(self.xy, axis=0)
+        seg_len2 = np.einsum("ij,ij->i", d, d)
+        frac = np.clip(np.einsum("nij,ij->ni", pts[:, None, :] - a[None], d) / seg_len2, 0.0, 1.0)
+        gap = pts[:, None] - (a[None] + frac[..., None] * d[None])
+        best = np.argmin(np.einsum("nij,nij->ni", gap, gap), axis=1)
+        idx = np.arange(len(pts))
+        station = self.s[best] + frac[idx, best] * (self.s[best + 1] - self.s[best])
+        tangent = d[best] / np.sqrt(seg_len2[best])[:, None]
+        offset = gap[idx, best]
+        cross = tangent[:, 0] * offset[:, 1] - tangent[:, 1] * offset[:, 0]
+        return station, cross, np.interp(station, self.s, self.heading)

@@ -5,6 +5,8 @@ from sim.gnss_fix import GnssFix
 from sim.lidar import HDL32E
 from sim.rng import stream
 from sim.scan import Scan
+from sim.scene import Scene
+from sim.traffic import Traffic, TrafficConfig, build_traffic
 from sim.trajectory import Trajectory
 
-__all__ = ["GnssFix", "GnssReceiver", "HDL32E", "Scan", "Trajectory", "stream"]
+__all__ = ["HDL32E", "GnssFix", "GnssReceiver", "Scan", "Scene", "Traffic", "TrafficConfig", "Trajectory", "build_traffic", "stream"]

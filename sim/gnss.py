@@ -10,6 +10,7 @@ carries the exact truth. All randomness comes from sim.rng.stream(seed, "gnss...
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from typing import Literal
@@ -25,6 +26,8 @@ from sim.multipath import L1_WAVELENGTH_M, FacadeIndex, code_multipath_error
 from sim.pseudorange import PseudorangeNoise, RangeErrors
 from sim.receiver_filter import CvKalman, FilterConfig
 from sim.rng import stream
+from sim.scene import split
+from sim.traffic import Traffic
 from sim.visibility import trace
 
 DEFAULT_EPOCH = datetime(2024, 6, 15, 14, 0, 0, tzinfo=timezone.utc)
@@ -207,7 +210,8 @@ class GnssReceiver:
         return pose[:3, :3] @ self._offset + pose[:3, 3]
 
     def fix(self, world, trajectory, t: float) -> GnssFix:
-        """The receiver's output at scenario time t (s); times must increase from call to call."""
+        """The receiver's output at scenario time t (s); times must increase from call to call. `world` is a World
+        or a sim.Scene, whose movers at time t block signals and, when steel, reflect them."""
         t = float(t)
         if not np.isfinite(t):
             raise ValueError(f"gnss: fix time must be finite, got {t}")
@@ -216,11 +220,12 @@ class GnssReceiver:
         utc = self.config.epoch_utc + timedelta(seconds=t)
         since_almanac = Constellation.seconds_since_epoch(utc)
         antenna = self._antenna(trajectory, t)
+        world, traffic = split(world)
         geo = self._geometry(world)
         self._last_t = t
 
         sat_enu, geometric, dirs, el, view = self._sky(geo, antenna, since_almanac)
-        los, nlos, extra = self._paths(world, geo, antenna, dirs, t)
+        los, nlos, extra = self._paths(world, traffic, geo, antenna, dirs, t)
 
         # Signal strength and tracking.
         mp = self.config.multipath
@@ -288,11 +293,15 @@ class GnssReceiver:
         view = np.nonzero(up >= np.sin(self._mask))[0]
         return sat_enu[view], geometric[view], diff[view] / geometric[view, None], np.arcsin(up[view]), view
 
-    def _paths(self, world, geo: _WorldGeometry, antenna: np.ndarray, dirs: np.ndarray, t: float):
+    def _paths(self, world, traffic: Traffic, geo: _WorldGeometry, antenna: np.ndarray, dirs: np.ndarray, t: float):
         """Per satellite: direct path clear (los), received only by reflection (nlos), and the
         extra path (m) of its shortest clear facade reflection (inf if none)."""
         reflections = geo.facades.reflections(antenna, dirs)
-        paths = trace(world.raycasting_scene, antenna, dirs, reflections)
+        movers = None
+        if traffic:
+            reflections = reflections.joined(traffic.reflections(antenna, dirs, t, self.config.multipath.search_radius_m))
+            movers = functools.partial(traffic.distance, t=t)
+        paths = trace(world.raycasting_scene, antenna, dirs, reflections, movers)
         if paths.inside_solid:
             raise ValueError(
                 f"gnss: antenna at ENU ({antenna[0]:.2f}, {antenna[1]:.2f}, {antenna[2]:.2f}) at t={t} s "

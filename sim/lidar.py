@@ -7,8 +7,11 @@ import numpy as np
 import open3d as o3d
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from sim.lidar_traffic import MoverRays
 from sim.rng import stream
 from sim.scan import POINT_DTYPE, Scan
+from sim.scene import Scene, split
+from sim.traffic import Traffic
 from worlds.world import World
 
 # Vertical angle of each laser in firing (laser-id) order, HDL-32E user's manual: the most
@@ -91,32 +94,38 @@ class HDL32E:
         )
         self._ray_dir32 = self.ray_dir.astype(np.float32)
         firing = np.arange(self.n_firings + 1)
-        self._knot_t = np.r_[firing[::POSE_KNOT_FIRINGS], firing[-1]] * FIRING_CYCLE_S
+        knot_firing = np.r_[firing[::POSE_KNOT_FIRINGS], firing[-1]]
+        self._knot_t = knot_firing * FIRING_CYCLE_S
         self._knot_index = np.minimum(firing // POSE_KNOT_FIRINGS, len(self._knot_t) - 2)
         self._knot_frac = (firing * FIRING_CYCLE_S - self._knot_t[self._knot_index]) / np.diff(self._knot_t)[self._knot_index]
+        self._mover_rays = MoverRays(self.ray_dir, azimuth, knot_firing, FIRING_CYCLE_S)
         self._detect_k = -np.log(0.1) * cfg.range_10pct_m**2 / 0.1
         self._occlusion: dict[bytes, np.ndarray] = {}
 
-    def scan(self, world: World, trajectory, t0: float) -> Scan:
-        """Cast the revolution starting at t0 over `world` from the vessel moving on `trajectory`."""
+    def scan(self, world: World | Scene, trajectory, t0: float) -> Scan:
+        """Cast the revolution starting at t0 over `world` (a World, or a Scene with traffic: each mover where
+        it was at each ray's firing time) from the vessel moving on `trajectory`."""
         cfg = self.config
         if not np.isfinite(t0):
             raise ValueError(f"lidar: scan start time is not finite ({t0})")
-        rays = self.rays(trajectory, t0)
+        world, traffic = split(world)
+        knots, poses = self._poses(trajectory, t0)
+        rays = self._rays(poses)
         hit = world.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         t_hit = hit["t_hit"].numpy()
         # incidence for every ray in one pass: cheaper than gathering normals and directions
         cos_all = np.abs(np.einsum("ij,ij->i", hit["primitive_normals"].numpy(), rays[:, 3:]))
+        mover = None
+        if traffic:
+            mover = self._mover_rays.cast(traffic, t0, knots, poses, t_hit, cos_all, cfg.max_range_m)
         ray_index = np.flatnonzero((t_hit <= cfg.max_range_m) & self._visible(trajectory))
-        part = world.face_part[hit["primitive_ids"].numpy()[ray_index]]
+        part, reflectivity, water = _surfaces(world, traffic, hit["primitive_ids"].numpy(), mover, ray_index)
         rng_true = t_hit[ray_index].astype(np.float64)
         cos_inc = cos_all[ray_index]
-        reflectivity = world.part_reflectivity[part]
 
         # one stream per revolution, so a scan depends only on (seed, t0), not on the call order
         rng = stream(cfg.seed, f"sim.lidar@{t0:.9f}")
         draw = rng.random(len(rng_true))
-        water = world.part_is_water[part]
         p_return = (1.0 - cfg.dropout_rate) * -np.expm1(-self._detect_k * reflectivity * cos_inc / rng_true**2)
         p_return[water] = cfg.water_return_prob * cos_inc[water] ** cfg.water_return_exponent
         if self._blinded(t0):
@@ -141,10 +150,17 @@ class HDL32E:
 
     def rays(self, trajectory, t0: float) -> np.ndarray:
         """(n_firings * 32, 6) float32 world rays (origin, unit direction) of the revolution at t0."""
+        return self._rays(self._poses(trajectory, t0)[1])
+
+    def _poses(self, trajectory, t0: float) -> tuple[np.ndarray, np.ndarray]:
+        """World<-lidar at the pose knots (K + 1, 4, 4) and interpolated at every firing (n_firings + 1, 4, 4)."""
         knots = trajectory.lidar_poses(t0 + self._knot_t)
         if not np.isfinite(knots).all():
             raise ValueError(f"lidar: trajectory gave a NaN pose for the revolution at t0={t0:.3f} s")
-        poses = knots[self._knot_index] + self._knot_frac[:, None, None] * np.diff(knots, axis=0)[self._knot_index]
+        return knots, knots[self._knot_index] + self._knot_frac[:, None, None] * np.diff(knots, axis=0)[self._knot_index]
+
+    def _rays(self, poses: np.ndarray) -> np.ndarray:
+        """(n_firings * 32, 6) float32 world rays from the firing poses."""
         # The 32 lasers of one 46 us firing sequence share its origin (they are < 0.1 mm apart at
         # 2.5 m/s, below float32 resolution of world coordinates); direction and time are per laser.
         rays = np.empty((self.n_firings, 32, 6), dtype=np.float32)
@@ -172,3 +188,19 @@ class HDL32E:
             t_hit = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
             self._occlusion[key] = ~np.isfinite(t_hit)
         return self._occlusion[key]
+
+
+def _surfaces(world: World, traffic: Traffic, primitive: np.ndarray, mover: np.ndarray | None,
+              ray_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Label, reflectivity and water flag of each returned ray's surface: a world part, or mover i as label
+    len(world.parts) + i (`mover`: per ray, the mover hit or -1; None without traffic)."""
+    if mover is None:
+        part = world.face_part[primitive[ray_index]]
+        return part, world.part_reflectivity[part], world.part_is_water[part]
+    hit_mover = mover[ray_index]
+    on = hit_mover >= 0
+    part = np.empty(len(ray_index), dtype=np.uint16)
+    part[~on] = world.face_part[primitive[ray_index[~on]]]
+    part[on] = len(world.parts) + hit_mover[on]
+    reflectivity = np.r_[world.part_reflectivity, traffic.reflectivity][part]
+    return part, reflectivity, np.r_[world.part_is_water, np.zeros(len(traffic), dtype=bool)][part]

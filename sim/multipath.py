@@ -42,6 +42,11 @@ class Reflections:
     def __len__(self) -> int:
         return len(self.sat)
 
+    def joined(self, other: Reflections) -> Reflections:
+        """These candidates followed by `other`'s."""
+        return Reflections(np.concatenate([self.sat, other.sat]), np.concatenate([self.point, other.point]),
+                           np.concatenate([self.normal, other.normal]), np.concatenate([self.extra_m, other.extra_m]))
+
 
 class FacadeIndex:
     """Reflective vertical faces of a world on a 2-D grid; `near(xy)` returns those within `radius_m`.

@@ -19,7 +19,8 @@ POINT_DTYPE = np.dtype(
 )
 """Per point: x, y, z in the lidar frame at the point's firing time (metres); intensity (0..255
 scale like the sensor's calibrated reflectivity byte); ring = laser id (firing order); time =
-seconds since `Scan.stamp`; label = index of the world part hit (simulation ground truth only)."""
+seconds since `Scan.stamp`; label = index of the world part hit, or, for a label >= len(world.parts),
+mover label - len(world.parts) of the scene's traffic (sim.scene.Scene; simulation ground truth only)."""
 
 
 @dataclass

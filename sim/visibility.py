@@ -8,6 +8,7 @@ antenna must hit nothing before the antenna).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,8 +37,9 @@ class SignalPaths:
 
 
 def trace(scene: o3d.t.geometry.RaycastingScene, antenna: np.ndarray, directions: np.ndarray,
-          reflections: Reflections) -> SignalPaths:
-    """Cast the probes, line-of-sight rays and reflection legs of one epoch in one batch."""
+          reflections: Reflections, movers: Callable[[np.ndarray], np.ndarray] | None = None) -> SignalPaths:
+    """Cast the probes, line-of-sight rays and reflection legs of one epoch in one batch; `movers`, if given,
+    maps world rays (N, 6) to the distance to the nearest moving body (inf: none), which blocks them too."""
     m, k = len(directions), len(reflections)
     p = len(PROBES)
     rays = np.empty((p + m + 2 * k, 6), dtype=np.float32)
@@ -58,6 +60,8 @@ def trace(scene: o3d.t.geometry.RaycastingScene, antenna: np.ndarray, directions
         rays[down, 3:] = to_antenna / leg_length[:, None]
     hits = scene.cast_rays(o3d.core.Tensor(rays))
     t_hit = hits["t_hit"].numpy()
+    if movers is not None:
+        t_hit[p:] = np.minimum(t_hit[p:], movers(rays[p:]))
     inside = bool(np.isfinite(t_hit[:p]).all() and ((hits["primitive_normals"].numpy()[:p] * PROBES).sum(1) > 0).all())
     los = np.isinf(t_hit[p:p + m])
     clear = np.isinf(t_hit[p + m:p + m + k]) & (t_hit[p + m + k:] >= leg_length - START_OFFSET_M)

@@ -29,13 +29,14 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.stats import rankdata  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy.stats import rankdata
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import fusion  # noqa: E402
-from stream_record import add_recording_args, load_or_record, replay  # noqa: E402
+from stream_record import add_recording_args, load_or_record, parse_settings, replay
+
+import fusion
 
 MONITORS = {
     "hdop": {"monitor": "hdop"},
@@ -147,7 +148,7 @@ def main() -> None:
     args = parser.parse_args()
     names = ["hdop"] + [m for m in args.monitors if m != "hdop"]
     out = Path(args.out)
-    rec = load_or_record(out, args.world, args.matcher, args.seed, args.t_start, args.t_end)
+    rec = load_or_record(out, args.world, args.matcher, args.seed, args.t_start, args.t_end, parse_settings(args.settings))
     estimators = {n: fusion.create("ekf", matcher=args.matcher, **MONITORS[n]) for n in names}
     if not args.no_estimators:
         estimators["pf"] = fusion.create("pf", matcher=args.matcher)

@@ -1,34 +1,59 @@
-"""Fusion through GPS outages: the fused error under bridges and through the receiver's wrong
-smoothed estimate after them, against gps_only and hdop_switch, with exact truth.
+"""Fusion through GPS outages: the error each estimator adds under bridges and through the receiver's
+wrong smoothed estimate after them, against gps_only and hdop_switch, with exact truth.
 
 The real stack (world, sim.Trajectory, sim.HDL32E, sim.GnssReceiver, matcher --matcher) is
-simulated once over the whole route and recorded (benchmarks/stream_record.py; reused from --out);
-gps_only, hdop_switch, ekf and pf at their defaults are replayed over all of it, so that each
-meets an outage with the state the route gave it. Every stretch without a measured fix (GGA 0 or 6)
-of at least --min-outage s is an outage; the table gives each estimator's horizontal error (max and
-mean) during it and in the --after s once fixes return, then the whole route's median and p95. A
-PNG per outage goes to --out.
+simulated once per seed over the whole route (or --t-start/--t-end) and recorded
+(benchmarks/stream_record.py; reused from --out); gps_only, hdop_switch, ekf and pf at their
+defaults are replayed over all of it, so that each meets an outage with the state the route gave it.
+Every stretch without a measured fix (GGA 0 or 6) of at least --min-outage s is an outage. Per
+outage and estimator the table gives the error when the outage begins (at its first scan), the max
+and mean horizontal error during it and in the --after s once fixes return, and the added error:
+the max over the outage and the --after s minus the error when it began. The --target estimator
+passes an outage when it adds at most --limit m. Then the whole route's median and p95, and a
+summary of the target's added error per outage and seed. A PNG per outage goes to --out.
 
-    .venv/bin/python benchmarks/outages.py [--world charles_river] [--matcher gicp]
+    .venv/bin/python benchmarks/outages.py [--world charles_river] [--matcher gicp] [--seeds 0 1 2]
+        [--after 20] [--limit 1.5] [--set world.some_param=value ...]
+
+`--set section.key=value` (world, vessel, lidar, gnss, matcher) changes what is simulated, e.g. to
+measure again once a world gains trees or moving boats; it is part of the recording's name.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import fusion  # noqa: E402
-from stream_record import add_recording_args, load_or_record, replay  # noqa: E402
+from stream_record import add_recording_args, load_or_record, parse_settings, replay
+
+import fusion
 
 NAMES = ("gps_only", "hdop_switch", "ekf", "pf")
+
+
+@dataclass(frozen=True)
+class OutageError:
+    """One estimator's horizontal errors (m) over one outage and the `after` s that follow it."""
+
+    start: float
+    out_max: float
+    out_mean: float
+    after_max: float
+    after_mean: float
+
+    @property
+    def added(self) -> float:
+        """Max error in the outage and after it, minus the error when the outage began."""
+        return max(self.out_max, self.after_max) - self.start
 
 
 def outage_windows(fix_stamp: np.ndarray, quality: np.ndarray, min_s: float) -> list[tuple[float, float]]:
@@ -45,30 +70,52 @@ def outage_windows(fix_stamp: np.ndarray, quality: np.ndarray, min_s: float) -> 
     return windows
 
 
-def run_outages(args) -> None:
-    rec = load_or_record(Path(args.out), args.world, args.matcher, args.seed, 0.0, None)
+def outage_error(t: np.ndarray, error: np.ndarray, window: tuple[float, float], after_s: float) -> OutageError:
+    """Errors of one estimator (at scan times t) over `window` and the after_s s that follow it."""
+    a, b = window
+    out, after = (t >= a) & (t < b), (t >= b) & (t < b + after_s)
+    first = int(np.searchsorted(t, a))
+    start = float(error[first]) if first < len(t) else float("nan")
+    stats = [(float(np.nanmax(e)), float(np.nanmean(e))) if len(e) and np.isfinite(e).any() else (float("nan"),) * 2
+             for e in (error[out], error[after])]
+    return OutageError(start, *stats[0], *stats[1])
+
+
+def _verdict(e: OutageError, limit: float) -> str:
+    """'pass' / 'FAIL' against the limit; 'n/a' when the estimator had no estimate when the outage began."""
+    return "n/a" if not np.isfinite(e.added) else "pass" if e.added <= limit else "FAIL"
+
+
+def run_seed(args, seed: int, settings: dict) -> list[tuple[tuple[float, float], OutageError]]:
+    """Record (or reuse) one seed's route, replay the estimators, print its table; the target's errors per outage."""
+    rec = load_or_record(Path(args.out), args.world, args.matcher, seed, args.t_start, args.t_end, settings)
     run = replay(rec, {n: fusion.create(n, matcher=args.matcher) for n in NAMES})
     quality = np.array([f.quality for f in run["fix"]])
     windows = outage_windows(run["fix_stamp"], quality, args.min_outage)
-    print(f"{args.world}, matcher {args.matcher}, seed {args.seed}: {len(windows)} outage(s) >= {args.min_outage} s: "
+    print(f"\n{args.world}, matcher {args.matcher}, seed {seed}: {len(windows)} outage(s) >= {args.min_outage} s: "
           + ", ".join(f"{a:.1f}-{b:.1f}" for a, b in windows))
     t = run["scan_stamp"]
     error = {n: np.hypot(*(run["estimate"][n][:, :2] - run["truth"][:, :2]).T) for n in NAMES}
     fix_error = np.array([np.hypot(*f.truth.error[:2]) for f in run["fix"]])
-    print(f"{'outage':>13} {'estimator':>12} {'out max':>8} {'out mean':>8} {'after max':>9} {'after mean':>10}")
+    print(f"{'outage':>13} {'estimator':>12} {'start':>6} {'out max':>8} {'out mean':>8} {'after max':>9} {'after mean':>10} {'added':>6}")
+    target = []
     for k, (a, b) in enumerate(windows):
-        out, after = (t >= a) & (t < b), (t >= b) & (t < b + args.after)
         for n in NAMES:
-            e = error[n]
-            print(f"{a:6.1f}-{b:6.1f} {n:>12} {np.nanmax(e[out]):8.2f} {np.nanmean(e[out]):8.2f} "
-                  f"{np.nanmax(e[after]):9.2f} {np.nanmean(e[after]):10.2f}")
+            e = outage_error(t, error[n], (a, b), args.after)
+            verdict = _verdict(e, args.limit) if n == args.target else ""
+            print(f"{a:6.1f}-{b:6.1f} {n:>12} {e.start:6.2f} {e.out_max:8.2f} {e.out_mean:8.2f} "
+                  f"{e.after_max:9.2f} {e.after_mean:10.2f} {e.added:6.2f} {verdict}")
+            if n == args.target:
+                target.append(((a, b), e))
         span = (t >= a - args.before) & (t < b + args.after)
         fspan = (run["fix_stamp"] >= a - args.before) & (run["fix_stamp"] < b + args.after)
         plot_errors(t[span], {n: error[n][span] for n in NAMES}, run["fix_stamp"][fspan], fix_error[fspan], (a, b),
-                    Path(args.out) / f"fusion_outage_{args.world}_{k}.png", f"{args.world}: outage {a:.1f}-{b:.1f} s ({args.matcher})")
-    print(f"\nwhole route ({len(t)} scans): horizontal error at scan times, m")
+                    Path(args.out) / f"fusion_outage_{args.world}_s{seed}_{k}.png",
+                    f"{args.world} seed {seed}: outage {a:.1f}-{b:.1f} s ({args.matcher})")
+    print(f"whole route ({len(t)} scans): horizontal error at scan times, m")
     for n in NAMES:
         print(f"{n:>12} median {np.nanmedian(error[n]):6.2f}  p95 {np.nanpercentile(error[n], 95):6.2f}  max {np.nanmax(error[n]):6.2f}")
+    return target
 
 
 def plot_errors(t: np.ndarray, error: dict, fix_t: np.ndarray, fix_error: np.ndarray, window, path: Path, title: str) -> None:
@@ -92,10 +139,30 @@ def plot_errors(t: np.ndarray, error: dict, fix_t: np.ndarray, fix_error: np.nda
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_recording_args(parser)
+    parser.add_argument("--seeds", type=int, nargs="+", default=None, help="seeds to run in turn (default: --seed)")
+    parser.add_argument("--t-start", type=float, default=0.0, help="record from this time, s (default 0: the whole route)")
+    parser.add_argument("--t-end", type=float, default=None, help="record up to this time, s (default: the route's end)")
     parser.add_argument("--min-outage", type=float, default=2.0)
-    parser.add_argument("--before", type=float, default=40.0)
-    parser.add_argument("--after", type=float, default=30.0)
-    run_outages(parser.parse_args())
+    parser.add_argument("--before", type=float, default=40.0, help="plotted seconds before an outage")
+    parser.add_argument("--after", type=float, default=20.0, help="seconds after an outage that count towards its error")
+    parser.add_argument("--target", default="ekf", choices=NAMES, help="estimator judged against --limit")
+    parser.add_argument("--limit", type=float, default=1.5, help="most error the target may add through an outage, m")
+    args = parser.parse_args()
+    try:
+        settings = parse_settings(args.settings)
+    except ValueError as err:
+        parser.error(str(err))
+    rows = []
+    for seed in args.seeds if args.seeds is not None else [args.seed]:
+        rows += [(seed, window, e) for window, e in run_seed(args, seed, settings)]
+    print(f"\n{args.target} added error per outage ({args.world}, matcher {args.matcher}, after {args.after:g} s, "
+          f"limit {args.limit:g} m{', ' + ' '.join(args.settings) if args.settings else ''})")
+    print(f"{'seed':>4} {'outage':>13} {'start':>6} {'max':>6} {'added':>6}")
+    for seed, (a, b), e in rows:
+        print(f"{seed:4d} {a:6.1f}-{b:6.1f} {e.start:6.2f} {max(e.out_max, e.after_max):6.2f} {e.added:6.2f} {_verdict(e, args.limit)}")
+    judged = [e for _, _, e in rows if np.isfinite(e.added)]
+    print(f"{sum(e.added <= args.limit for e in judged)} of {len(judged)} outages within {args.limit:g} m"
+          f"{f' ({len(rows) - len(judged)} met before the {args.target} was initialised)' if len(judged) < len(rows) else ''}")
 
 
 if __name__ == "__main__":

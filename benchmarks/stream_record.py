@@ -2,13 +2,19 @@
 
 Simulating the LiDAR and matching dominate a route's wall time; the monitors and estimators under
 test only need each scan's MatchResult, each GnssFix and the truth pose per scan. A recording is
-pickled under benchmarks/out keyed by world, matcher, seed, span and a digest of the simulating
-code (worlds/, sim/, matcher/, scenarios/stream.py), and reused when present.
+pickled under benchmarks/out keyed by world, matcher, seed, span, the `--set` settings and a digest
+of the simulating code (worlds/, sim/, matcher/, scenarios/stream.py), and reused when present.
+
+`--set section.key=value` (repeatable; values typed as TOML, as `riverbench run --set`) passes
+extra keyword arguments to what the stream is built from: `world` (the preset's parameters),
+`vessel` (sim.Trajectory), `lidar` (sim.HDL32E), `gnss` (sim.GnssReceiver), `matcher` (its params),
+so that a recording can be made again in a changed world (e.g. with trees or moving boats).
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import pickle
 import time
@@ -20,8 +26,11 @@ import numpy as np
 import matcher
 import sim
 import worlds
+from scenarios.overrides import parse_value
 from scenarios.stream import FixEvent, events, pose_xyzyaw
 from sim.gnss import GnssReceiver
+
+SECTIONS = ("world", "vessel", "lidar", "gnss", "matcher")
 
 
 @dataclass
@@ -35,16 +44,32 @@ class Recording:
     t_end: float
     items: list
     wall_s: float
+    settings: dict | None = None
 
 
-def record(world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None, every_s: float = 120.0) -> Recording:
+def parse_settings(assignments: list[str]) -> dict[str, dict]:
+    """{section: {key: value}} from 'section.key=value' strings (ValueError naming a bad one)."""
+    settings: dict[str, dict] = {}
+    for assignment in assignments:
+        key, sep, raw = assignment.partition("=")
+        section, dot, name = key.strip().partition(".")
+        if not sep or not dot or not name or section not in SECTIONS:
+            raise ValueError(f"--set {assignment!r}: write section.key=value with section one of {', '.join(SECTIONS)}")
+        settings.setdefault(section, {})[name] = parse_value(raw.strip())
+    return settings
+
+
+def record(world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None, every_s: float = 120.0,
+           settings: dict | None = None) -> Recording:
     """Simulate the real stack (world, Trajectory, HDL32E, GnssReceiver, matcher) once and keep what the filters see."""
-    world = worlds.load(world_name)
-    trajectory = sim.Trajectory(world, seed=seed)
+    opts = {section: dict((settings or {}).get(section, {})) for section in SECTIONS}
+    world = worlds.load(world_name, **opts["world"])
+    trajectory = sim.Trajectory(world, seed=seed, **opts["vessel"])
     t_end = trajectory.duration if t_end is None else min(t_end, trajectory.duration)
-    m = matcher.create(matcher_name)
+    m = matcher.create(matcher_name, **opts["matcher"])
+    lidar, receiver = sim.HDL32E(seed=seed, **opts["lidar"]), GnssReceiver(seed=seed, **opts["gnss"])
     items, start, next_report = [], time.perf_counter(), t_start + every_s
-    for event in events(world, trajectory, sim.HDL32E(seed=seed), GnssReceiver(seed=seed), t_start, t_end):
+    for event in events(world, trajectory, lidar, receiver, t_start, t_end):
         if isinstance(event, FixEvent):
             items.append(("fix", event.stamp, event.fix))
         else:
@@ -53,7 +78,7 @@ def record(world_name: str, matcher_name: str, seed: int, t_start: float, t_end:
             rate = (event.stamp - t_start) / (time.perf_counter() - start)
             print(f"  ... {event.stamp:7.1f} / {t_end:.0f} s simulated ({rate:.2f}x real time)", flush=True)
             next_report += every_s
-    return Recording(world_name, matcher_name, seed, t_start, float(t_end), items, time.perf_counter() - start)
+    return Recording(world_name, matcher_name, seed, t_start, float(t_end), items, time.perf_counter() - start, settings or None)
 
 
 def code_digest() -> str:
@@ -67,23 +92,34 @@ def code_digest() -> str:
 
 
 def add_recording_args(parser) -> None:
-    """The command-line options that pick a recording: --world, --matcher, --seed, --out."""
+    """The command-line options that pick a recording: --world, --matcher, --seed, --out, --set."""
     parser.add_argument("--world", default="charles_river")
     parser.add_argument("--matcher", default="gicp")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="benchmarks/out")
+    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help=f"extra keyword argument for the stream, section one of {', '.join(SECTIONS)} "
+                             "(e.g. world.buildings=false, lidar.range_noise_m=0.03); repeatable")
 
 
-def load_or_record(out: Path, world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None) -> Recording:
+def settings_tag(settings: dict | None) -> str:
+    """'' without settings, else '_set' and a short digest of them (part of a recording's file name)."""
+    if not settings:
+        return ""
+    return "_set" + hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:8]
+
+
+def load_or_record(out: Path, world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None,
+                   settings: dict | None = None) -> Recording:
     """The cached recording for these settings, or a fresh one written atomically (temp name, then rename)."""
     span = f"{t_start:g}-{'end' if t_end is None else f'{t_end:g}'}"
-    path = out / f"stream_{world_name}_{matcher_name}_s{seed}_{span}_{code_digest()}.pkl"
+    path = out / f"stream_{world_name}_{matcher_name}_s{seed}_{span}{settings_tag(settings)}_{code_digest()}.pkl"
     if path.exists():
         with path.open("rb") as f:
             rec = pickle.load(f)
         print(f"replaying {path} (recorded in {rec.wall_s:.0f} s wall)")
         return rec
-    rec = record(world_name, matcher_name, seed, t_start, t_end)
+    rec = record(world_name, matcher_name, seed, t_start, t_end, settings=settings)
     out.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     with tmp.open("wb") as f:

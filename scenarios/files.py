@@ -1,4 +1,4 @@
-"""The run directory's data files: TUM trajectories, gps.csv, windows.csv, scans.csv.
+"""The run directory's data files: TUM trajectories, gps.csv, windows.csv, scans.csv, movers.csv.
 
 TUM lines are 'timestamp tx ty tz qx qy qz qw' (world ENU, base_link, unit quaternion), the format
 evo and the TUM RGB-D tools read; a pose the estimator did not have yet (before initialisation) is
@@ -99,6 +99,21 @@ def write_vessel_csv(path: Path, log) -> None:
         for t, x, y, yaw, station, cross, clearance, part, left, right in log.rows:
             w.writerow([f"{t:.3f}", *_fmt((x, y), 3), f"{np.degrees(yaw):.3f}", *_fmt((station, cross, clearance), 3), part,
                         *_fmt((left, right), 4)])
+
+
+def write_movers_csv(path: Path, t: np.ndarray, scene) -> None:
+    """One row per scan time and mover of a sim.Scene's traffic: t, id, the mover's LiDAR label, x, y (world ENU, m),
+    yaw (deg from east)."""
+    traffic, first_label = scene.traffic, len(scene.world.parts)
+    poses = traffic.poses(t)  # (M, N, 4, 4)
+    with open(path, "w", newline="") as handle:
+        w = csv.writer(handle)
+        w.writerow(["t", "id", "label", "x", "y", "yaw_deg"])
+        for i, ti in enumerate(t):
+            for m, mid in enumerate(traffic.ids):
+                p = poses[m, i]
+                w.writerow([f"{ti:.3f}", mid, first_label + m, f"{p[0, 3]:.3f}", f"{p[1, 3]:.3f}",
+                            f"{np.degrees(np.arctan2(p[1, 0], p[0, 0])):.3f}"])
 
 
 def _fmt1(value: float, digits: int) -> str:

@@ -24,6 +24,7 @@ from sim.autopilot import AutopilotConfig
 from sim.dynamics import WamvDynamics
 from sim.gnss import GnssConfig
 from sim.lidar import HDL32EConfig
+from sim.traffic import TrafficConfig
 from sim.trajectory import TrajectoryConfig
 
 ID_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*$"
@@ -227,6 +228,7 @@ class Scenario(BaseModel):
     lidar: HDL32EConfig = Field(default_factory=HDL32EConfig, description="sim.HDL32E parameters (blinding is here)")
     gnss: GnssConfig = Field(default_factory=GnssConfig, description="sim.GnssReceiver parameters (forced outages and biases are here)")
     control: Control = Field(default_factory=Control, description="open loop or closed loop")
+    traffic: TrafficConfig | None = Field(None, description="other vessels moving on the river (none by default: a static world)")
     matchers: list[MatcherSpec] = Field(default_factory=_default_matchers, description="scan matchers under test")
     estimators: list[EstimatorSpec] = Field(default_factory=_default_estimators, description="estimators under test")
     expect: list[str] = Field(default_factory=list, description="'metric op value' over dotted paths of metrics.json")

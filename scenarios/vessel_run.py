@@ -15,6 +15,8 @@ from scenarios.vessel_log import VesselWatch
 from sim.autopilot import Autopilot
 from sim.clearance import HullClearance
 from sim.driven_trajectory import DrivenTrajectory
+from sim.scene import Scene
+from sim.traffic import build_traffic
 from sim.trajectory import Trajectory
 from sim.vessel import hull_mesh
 
@@ -24,7 +26,7 @@ class VesselRun:
     """The trajectory the sensors see, the watch that logs clearance, and the events of the run."""
 
     scenario: Scenario
-    world: object
+    world: object  # what the sensors see: a sim.Scene, the world and its traffic
     trajectory: Trajectory | DrivenTrajectory
     watch: VesselWatch
     lidar: object
@@ -35,11 +37,13 @@ class VesselRun:
 
     @classmethod
     def build(cls, scenario: Scenario, world, planned: Trajectory, lidar, receiver, t_start: float, t_end: float) -> "VesselRun":
-        """Open loop: the planned trajectory. Closed loop: a driven one starting where the plan is at t_start, at its speed."""
+        """Open loop: the planned trajectory. Closed loop: a driven one starting where the plan is at t_start, at its speed.
+        The sensors see `world` with the scenario's traffic (a chase boat follows the trajectory the vessel takes)."""
         control = scenario.control
         clearance = HullClearance(world, hull_mesh(scenario.vessel.hull, mast_top_m=0.0))
         if control.mode == "open_loop":
-            return cls(scenario, world, planned, VesselWatch(world, planned, clearance, lidar.revolution_s), lidar, receiver, t_start, t_end)
+            scene = Scene(world, build_traffic(scenario.traffic, world, planned))
+            return cls(scenario, scene, planned, VesselWatch(world, planned, clearance, lidar.revolution_s), lidar, receiver, t_start, t_end)
         start = planned.pose(t_start)
         driven = DrivenTrajectory(scenario.vessel.model_copy(update={"seed": scenario.seed}), control.dynamics,
                                   (start[0, 3], start[1, 3], float(np.arctan2(start[1, 0], start[0, 0])), float(planned.speed(t_start))),
@@ -47,8 +51,9 @@ class VesselRun:
         watch = VesselWatch(world, driven, clearance, lidar.revolution_s)
         end_station = float(planned.station(t_end))
         t_limit = t_start + control.time_limit_factor * (t_end - t_start)
-        loop = ClosedLoop(world, driven, lidar, receiver, watch, t_start, end_station, t_limit)
-        return cls(scenario, world, driven, watch, lidar, receiver, t_start, t_end, loop)
+        scene = Scene(world, build_traffic(scenario.traffic, world, driven))
+        loop = ClosedLoop(scene, driven, lidar, receiver, watch, t_start, end_station, t_limit)
+        return cls(scenario, scene, driven, watch, lidar, receiver, t_start, t_end, loop)
 
     def events(self, feed) -> Iterator:
         """The run's scans and fixes in time order; closed loop steers on `feed`'s estimator (or the truth)."""

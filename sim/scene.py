@@ -19,6 +19,11 @@ class Scene:
     world: World
     traffic: Traffic = field(default_factory=Traffic)
 
+    @property
+    def route(self):
+        """The world's route (what an autopilot follows)."""
+        return self.world.route
+
 
 def split(world: World | Scene) -> tuple[World, Traffic]:
     """(static world, traffic) of what a sensor was given; a plain World has no traffic."""

@@ -1,5 +1,6 @@
 """Moving boats: the LiDAR sees each at every ray's firing time, they block GNSS signals, and the traffic kinematics."""
 
+import csv
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,6 +10,9 @@ from analytic_worlds import wall_world
 from gnss_worlds import NOISE_OFF, Static, open_water
 from pydantic import ValidationError
 
+import scenarios
+import worlds
+from scenarios import files
 from sim.boats import BOATS, boat
 from sim.gnss import GnssReceiver
 from sim.lidar import HDL32E
@@ -187,3 +191,27 @@ def test_traffic_config_names_movers_and_rejects_bad_input():
     for kind in BOATS:
         mesh, _ = boat(kind)
         assert mesh.is_watertight
+
+
+def test_scenarios_without_traffic_keep_their_hash_and_a_bad_mover_names_its_key():
+    plain = scenarios.load("harvard_beam_bridge")
+    assert plain.traffic is None and "traffic" not in plain.resolved()
+    assert scenarios.load("harvard_beam_bridge", set=["traffic.movers=[]"]).traffic.movers == []
+    with pytest.raises(ValueError, match=r"traffic\.movers.*distance_m"):
+        scenarios.load("chase_boat", set=["traffic.movers.chase.distance_m=-1.0"])
+
+
+def test_a_run_with_traffic_records_the_movers_at_scan_times_and_their_points(tmp_path):
+    scenario = scenarios.load("chase_boat", set=["stretch={start_s = 1580.0, end_s = 1581.5}"])
+    result = scenarios.run(scenario, tmp_path / "run", workers=1, report=False)
+    with open(result.out_dir / "movers.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    truth = files.read_tum(result.out_dir / "groundtruth.tum")
+    assert [float(r["t"]) for r in rows] == pytest.approx(truth[:, 0], abs=1e-3) and {r["id"] for r in rows} == {"chase"}
+    world = worlds.load(scenario.world, **scenario.world_params)
+    assert {int(r["label"]) for r in rows} == {len(world.parts)}
+    yaw = np.radians([float(r["yaw_deg"]) for r in rows])
+    behind = truth[:, 1:3] - 15.0 * np.c_[np.cos(yaw), np.sin(yaw)] - 6.0 * np.c_[-np.sin(yaw), np.cos(yaw)]
+    np.testing.assert_allclose(np.c_[[float(r["x"]) for r in rows], [float(r["y"]) for r in rows]], behind, atol=2e-3)
+    points = result.metrics["run"]["mover_points"]
+    assert points["median"] > 50 and points["scans_with"] == 1.0

@@ -66,7 +66,7 @@ def open_stream(scenario: Scenario) -> tuple[StreamInfo, Iterator[Frame]]:
     n_scans = int(np.floor((t_end - t_start) / lidar.revolution_s + 1e-9))
     info = StreamInfo(scenario.name, t_start, t_end, n_scans, scenario.lidar.rate_hz, scenario.gnss.rate_hz,
                       tuple(world.origin), scenario.gnss.epoch_utc, trajectory.mount.copy(), tuple(scenario.gnss.antenna_offset_m))
-    return info, _frames(world, trajectory, lidar, receiver, t_start, t_end)
+    return info, _frames(sim.Scene(world, sim.build_traffic(scenario.traffic, world, trajectory)), trajectory, lidar, receiver, t_start, t_end)
 
 
 def _frames(world, trajectory, lidar, receiver, t_start: float, t_end: float) -> Iterator[Frame]:

@@ -215,3 +215,16 @@ def test_a_run_with_traffic_records_the_movers_at_scan_times_and_their_points(tm
     np.testing.assert_allclose(np.c_[[float(r["x"]) for r in rows], [float(r["y"]) for r in rows]], behind, atol=2e-3)
     points = result.metrics["run"]["mover_points"]
     assert points["median"] > 50 and points["scans_with"] == 1.0
+
+
+def test_a_steel_wheelhouse_side_reflects_by_the_image_method_and_fibreglass_does_not():
+    barge = Mover("barge", *boat("barge"), Parked(np.eye(4)))
+    el = np.deg2rad(20.0)
+    north = np.array([[0.0, np.cos(el), np.sin(el)]])
+    antenna = np.array([-12.0, 13.0, 2.0])  # 10 m off the wheelhouse's side (body y = 3 m, x -14..-10, z 1.5..7.5)
+    found = barge.reflections(np.eye(4), antenna, north, radius_m=200.0)
+    assert len(found) == 1
+    assert found.extra_m[0] == pytest.approx(2 * 10.0 * np.cos(el))
+    np.testing.assert_allclose(found.point[0], [-12.0, 3.0, 2.0 + 10.0 * np.tan(el)], atol=1e-9)
+    runabout = Mover("runabout", *boat("runabout"), Parked(np.eye(4)))
+    assert len(runabout.reflections(np.eye(4), np.array([0.0, 5.0, 1.0]), north, radius_m=200.0)) == 0

@@ -137,9 +137,9 @@ def test_bridge_shadow_covers_deck_width(built):
             assert st_["deck_width_m"] - 2.5 <= length <= st_["deck_width_m"] / np.cos(np.radians(st_["crossing_angle_deg"])) + 2.5
 
 
-def test_canal_walls_vertical_at_bank_distance(built):
-    """Horizontal rays to both sides hit a vertical wall at the route's left_m / right_m."""
-    world = built["canal_lock"]
+def test_canal_walls_vertical_at_bank_distance():
+    """Horizontal rays to both sides hit a vertical wall at the route's left_m / right_m (no moored boats in the way)."""
+    world = worlds.load("canal_lock", docks=False, moored_boats=False, use_cache=False)
     r = world.route
     keep = ~structure_stations(world, 15.0)
     pts = route_points(world, 1.0)[keep]
@@ -423,7 +423,8 @@ def test_untangle_leaves_no_loops(radius, offset, turn):
 def test_canal_invariants_over_parameters(width, wall, deck, gate, chamber_frac):
     chamber = max(5.0, chamber_frac * (width - 2.5))
     world = worlds.load("canal_lock", width_m=width, wall_height_m=wall, bridge_deck_height_m=deck,
-                        lock_gate_type=gate, lock_chamber_width_m=chamber, buildings=False, use_cache=False)
+                        lock_gate_type=gate, lock_chamber_width_m=chamber, buildings=False, docks=False, moored_boats=False,
+                        use_cache=False)
     t, kind = cast(world, route_points(world, 0.5, step=5), (0, 0, -1))
     assert (kind == "water").all()
     keep = ~structure_stations(world, 15.0)

@@ -16,8 +16,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sim.rng import stream
 from worlds.channel import Centerline
-from worlds.geometry import box, merge, untangle
+from worlds.geometry import box, merge
 from worlds.materials import MATERIALS
+from worlds.placement import clearance, edge
 from worlds.world import Part
 
 FACADES = ("brick", "glass", "concrete")
@@ -50,29 +51,13 @@ class BuildingRow(BaseModel):
         return self
 
 
-def _edge(line: Centerline, side: str) -> tuple[np.ndarray, np.ndarray]:
-    """The channel edge on `side` (loops trimmed) every ~4 m, and its outward normals."""
-    xy, nl = line.xy[::4], np.stack([-np.sin(line.heading[::4]), np.cos(line.heading[::4])], 1)
-    out = line.side_sign(side) * nl
-    return untangle(xy + out * line.width(side)[::4, None]), out
-
-
-def _clearance(edge: tuple[np.ndarray, np.ndarray], pts: np.ndarray) -> np.ndarray:
-    """Distance of each point from the channel edge; negative when on the water side of it."""
-    edge_xy, out = edge
-    d = np.linalg.norm(pts[:, None, :] - edge_xy[None, :, :], axis=2)
-    k = d.argmin(axis=1)
-    side = np.sign(np.einsum("ij,ij->i", pts - edge_xy[k], out[k]))
-    return d[np.arange(len(pts)), k] * side
-
-
 def build_buildings(rows: list[BuildingRow], line: Centerline, seed: int, keep_clear: list[tuple[float, float]]) -> list[Part]:
     """One part per facade material holding every building of that material."""
     rng = stream(seed, "worlds.buildings")
     by_material: dict[str, list] = {m: [] for m in FACADES}
     for row in rows:
         sign = line.side_sign(row.side)
-        edge = _edge(line, row.side)
+        edge_line = edge(line, row.side)
         cursor = max(row.start_m, float(line.s[0]))
         while True:
             front = rng.uniform(*row.frontage_m)
@@ -95,7 +80,7 @@ def build_buildings(rows: list[BuildingRow], line: Centerline, seed: int, keep_c
                 if any(a - front / 2 - 5.0 <= sc <= b + front / 2 + 5.0 for a, b in keep_clear):
                     continue
                 corners = centre + np.array([[i * front / 2, j * depth / 2] for i in (-1, 1) for j in (-1, 1)]) @ np.stack([along, out])
-                if _clearance(edge, corners).min() < 0.5 * row.setback_m:
+                if clearance(edge_line, corners).min() < 0.5 * row.setback_m:
                     continue
                 z0 = row.ground_m - 1.0
                 by_material[material].append(box(np.r_[centre, z0 + (height + 1.0) / 2], along, (front, depth, height + 1.0)))

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from worlds.crowns import Crowns
 from worlds.materials import MATERIALS
 from worlds.route import Route
 from worlds.world import Part, World
@@ -57,6 +58,7 @@ def save(world: World, path: Path) -> None:
         arrays[f"f{i}"] = np.asarray(p.mesh.faces, dtype=np.int64)
     r = world.route
     arrays |= {"route_xy": r.xy, "route_s": r.s, "route_heading": r.heading, "route_left": r.left_m, "route_right": r.right_m}
+    arrays |= {"crown_centre": world.crowns.centre, "crown_radius": world.crowns.radius}
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     try:
@@ -79,7 +81,8 @@ def read(path: Path) -> World:
         ]
         route = Route(xy=data["route_xy"], s=data["route_s"], heading=data["route_heading"],
                       left_m=data["route_left"], right_m=data["route_right"])
-    return World(name=meta["name"], parts=parts, route=route, origin=tuple(meta["origin"]), params=meta["params"])
+        crowns = Crowns(data["crown_centre"], data["crown_radius"])
+    return World(name=meta["name"], parts=parts, route=route, origin=tuple(meta["origin"]), params=meta["params"], crowns=crowns)
 
 
 def load_or_build(preset: str, params: dict, build) -> World:

@@ -168,6 +168,20 @@ def edge_summary(route: Route, params: ChannelParams) -> list[dict]:
     return out
 
 
+def ground_height(params: ChannelParams, side: str, s: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Height above the water of the edge profile on `side` at stations s, `offset` m outward from
+    the channel edge (on a bank's slope, its top or the flat ground behind any edge)."""
+    s, offset = np.asarray(s, float), np.asarray(offset, float)
+    z = np.zeros(len(s))
+    if not len(s):
+        return z
+    for a, b, style in _intervals(side, params, float(s.min()) - 1.0, float(s.max()) + 1.0):
+        prof = style.profile()
+        sel = (s >= a) & (s <= b)
+        z[sel] = np.interp(offset[sel], [p[0] for p in prof], [p[1] for p in prof])
+    return z
+
+
 def _offset_line(line: Centerline, side: str, s: np.ndarray, offset: float) -> np.ndarray:
     """Edge-relative offset line on `side` at stations s, untangled at tight inner bends."""
     xy, nl, wl, wr = line.sample(s)

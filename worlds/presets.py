@@ -17,8 +17,11 @@ from worlds.bridges import BridgeSpec
 from worlds.buildings import BuildingRow
 from worlds.channel import ChannelParams, EdgeStretch, EdgeStyle
 from worlds.lock import LockSpec
+from worlds.moorings import Dock, MooringField
 from worlds.params import validate
+from worlds.riverside import Riverside, RiversideParams
 from worlds.route import Route
+from worlds.vegetation import TreeRow
 from worlds.world import World
 
 
@@ -47,7 +50,7 @@ CHARLES_RIVER_WIDTH = np.array([200.0, 200.0, 280.0, 450.0, 580.0, 520.0, 450.0,
 CHARLES_BASIN = (1, 7)  # waypoints between which the route keeps `esplanade_offset_m` off the right bank
 
 
-class CharlesRiverParams(PresetParams):
+class CharlesRiverParams(PresetParams, RiversideParams):
     """The Charles River from the BU Bridge to the Charlestown Bridge (see worlds/charles_river.md)."""
 
     esplanade_offset_m: float = Field(60.0, ge=20.0, le=150.0, description="route distance from the Esplanade sea wall (right bank) in the basin, m")
@@ -115,6 +118,54 @@ def _charles_buildings(route: Route, scale: float) -> list[BuildingRow]:
     ]
 
 
+def _charles_riverside(route: Route, p: CharlesRiverParams) -> Riverside:
+    """The Esplanade and Memorial Drive tree lines, parks on the lower river, the sailing clubs' docks
+    and moorings, and the dam lock's waiting pontoons (see worlds/charles_river.md)."""
+    at = route.station_of
+    longfellow = at((2900.0, 830.0))
+    lower, dam = longfellow + 40.0, at((3950.0, 1640.0))
+    big = dict(height_m=(14.0, 24.0), crown_radius_m=(4.0, 7.0))
+    park = dict(setback_m=(4.0, 12.0), spacing_m=(8.0, 14.0), height_m=(12.0, 20.0), crown_radius_m=(3.5, 6.0))
+    trees = [
+        TreeRow(side="right", start_m=0.0, end_m=longfellow - 40.0, setback_m=(3.0, 7.0), spacing_m=(8.0, 13.0),
+                crown_base=(0.1, 0.3), **big),  # the Esplanade: planes, lindens and willows along the wall
+        TreeRow(side="right", start_m=0.0, end_m=longfellow - 40.0, setback_m=(12.0, 55.0), spacing_m=(12.0, 22.0),
+                height_m=(12.0, 22.0), crown_radius_m=(3.5, 6.5)),  # its park behind
+        TreeRow(side="left", start_m=-150.0, end_m=at((350.0, 70.0)), setback_m=(12.0, 45.0), spacing_m=(10.0, 18.0),
+                height_m=(10.0, 20.0), crown_radius_m=(3.5, 6.0)),  # Magazine Beach
+        TreeRow(side="left", start_m=at((350.0, 70.0)), end_m=longfellow - 40.0, setback_m=(3.0, 10.0), spacing_m=(9.0, 14.0), **big),  # Memorial Drive
+        TreeRow(side="right", start_m=lower, end_m=dam - 60.0, **park),  # Charlesbank, Nashua Street
+        TreeRow(side="left", start_m=lower, end_m=dam - 60.0, **park),  # Lechmere, North Point Park
+        TreeRow(side="left", start_m=dam + 60.0, end_m=route.length + 150.0, setback_m=(5.0, 20.0), spacing_m=(12.0, 20.0),
+                height_m=(8.0, 14.0), crown_radius_m=(3.0, 5.0)),  # Paul Revere Park
+    ]
+    dinghies = dict(boat_length_m=(4.0, 6.0), sail_share=1.0)
+    keelboats = dict(boat_length_m=(7.0, 11.0), sail_share=0.7)
+    docks = [
+        Dock(name="bu_sailing_pavilion", side="right", station_m=at((800.0, 140.0)) - 250.0, length_m=35.0, boats=10, **dinghies),
+        Dock(name="harvard_sailing_center", side="left", station_m=at((1570.0, 200.0)) + 140.0, length_m=30.0, boats=8, **dinghies),
+        Dock(name="mit_sailing_pavilion", side="left", station_m=at((1570.0, 200.0)) + 240.0, length_m=40.0, boats=14, **dinghies),
+        Dock(name="esplanade_lagoon", side="right", station_m=at((2250.0, 430.0)) + 220.0, type="pier", orientation="along", length_m=40.0,
+             boats=3, boat_length_m=(6.0, 10.0), sail_share=0.2),
+        *[Dock(name=f"community_boating_{k}", side="right", station_m=longfellow - d, length_m=32.0, boats=12,
+               boat_length_m=(4.5, 7.0), sail_share=0.9) for k, d in enumerate((150.0, 125.0, 100.0))],
+        Dock(name="charles_river_yacht_club", side="left", station_m=longfellow - 150.0, length_m=40.0, boats=10, **keelboats),
+        Dock(name="museum_of_science_landing", side="left", station_m=at((3260.0, 1540.0)) + 100.0, orientation="along",
+             length_m=25.0, boats=2, boat_length_m=(8.0, 12.0), sail_share=0.0),
+        Dock(name="dam_lock_waiting_upstream", side="right", station_m=dam - 120.0, orientation="along", length_m=40.0, width_m=3.0,
+             boats=3, boat_length_m=(8.0, 12.0), sail_share=0.3),
+        Dock(name="dam_lock_waiting_downstream", side="left", station_m=dam + 80.0, orientation="along", length_m=30.0, width_m=3.0,
+             boats=2, boat_length_m=(8.0, 12.0), sail_share=0.3),
+    ]
+    fields = [
+        MooringField(name="community_boating_moorings", side="right", start_m=longfellow - 250.0, end_m=longfellow - 60.0,
+                     offset_m=(36.0, 44.0), spacing_m=12.0, boat_length_m=(4.5, 7.0), sail_share=0.9),
+        MooringField(name="charles_river_yacht_club_moorings", side="left", start_m=longfellow - 350.0, end_m=longfellow - 60.0,
+                     offset_m=(50.0, 150.0), spacing_m=22.0, **keelboats),
+    ]
+    return Riverside(RiversideParams(**p.model_dump(include=set(RiversideParams.model_fields))), trees, docks, fields)
+
+
 def charles_river(p: CharlesRiverParams) -> World:
     """Charles River, BU Bridge to Charlestown Bridge: five bridges, the dam lock, sea walls, downtown blocks.
 
@@ -125,8 +176,12 @@ def charles_river(p: CharlesRiverParams) -> World:
     lock = LockSpec(name="charles_river_dam_lock", station_m=route.station_of((3950.0, 1640.0)), length_m=80.0,
                     chamber_width_m=14.0, top_m=4.0, gate_type=p.lock_gate_type, road_width_m=20.0, road_height_m=6.5)
     rows = _charles_buildings(route, p.building_height_scale) if p.buildings else []
-    return assemble("charles_river", route, _charles_channel(route), bridges, [lock], rows, p.seed, p.origin,
-                    p.model_dump(mode="json"))
+    at = route.station_of
+    stretches = [("bu_reach", 0.0, at((350.0, 70.0))), ("esplanade_basin", at((350.0, 70.0)), at((2900.0, 830.0))),
+                 ("lower_river", at((2900.0, 830.0)), at((3950.0, 1640.0)) - 60.0), ("dam_and_harbour", at((3950.0, 1640.0)) - 60.0, route.length)]
+    params = p.model_dump(mode="json") | {"stretches": [{"name": n, "start_m": a, "end_m": b} for n, a, b in stretches]}
+    return assemble("charles_river", route, _charles_channel(route), bridges, [lock], rows, p.seed, p.origin, params,
+                    _charles_riverside(route, p))
 
 
 # --------------------------------------------------------------------------------------------- #
@@ -141,7 +196,7 @@ CANAL_WAYPOINTS = np.array(
 CANAL_STRAIGHT = (20.0, 300.0)
 
 
-class CanalLockParams(PresetParams):
+class CanalLockParams(PresetParams, RiversideParams):
     """A short urban canal with vertical walls, two low bridges, a lock and buildings."""
 
     width_m: float = Field(26.0, ge=14.0, le=60.0, description="canal width between the walls, m (route in the middle)")
@@ -174,8 +229,22 @@ def canal_lock(p: CanalLockParams) -> World:
                     height_m=(12.0, 35.0), frontage_m=(12.0, 30.0), depth_m=(12.0, 20.0), gap_m=(0.0, 8.0), rows=2)
         for side in ("left", "right")
     ] if p.buildings else []
-    params = p.model_dump(mode="json") | {"straight_stretch_m": list(CANAL_STRAIGHT)}
-    return assemble("canal_lock", route, channel, bridges, [lock], rows, p.seed, p.origin, params)
+    town = CANAL_STRAIGHT[1] + 30.0
+    stretches = [{"name": "straight", "start_m": 0.0, "end_m": town}, {"name": "town", "start_m": town, "end_m": route.length}]
+    params = p.model_dump(mode="json") | {"straight_stretch_m": list(CANAL_STRAIGHT), "stretches": stretches}
+    return assemble("canal_lock", route, channel, bridges, [lock], rows, p.seed, p.origin, params, _canal_riverside(route, p, town))
+
+
+def _canal_riverside(route: Route, p: CanalLockParams, town: float) -> Riverside:
+    """Street trees on both quays in the town (the straight stretch stays bare), a line of boats moored
+    along the left wall above the lock and a narrow pontoon with two boats below it."""
+    street = dict(setback_m=(1.5, 3.5), spacing_m=(10.0, 16.0), height_m=(7.0, 11.0), crown_radius_m=(1.8, 3.0))
+    trees = [TreeRow(side=side, start_m=town, end_m=route.length + 100.0, **street) for side in ("left", "right")]
+    docks = [Dock(name="town_pontoon", side="right", station_m=760.0, orientation="along", length_m=24.0, width_m=1.2,
+                  boats=2, boat_length_m=(5.0, 7.0), sail_share=0.0)]
+    fields = [MooringField(name="quay_moorings", side="left", start_m=440.0, end_m=595.0, offset_m=(0.3, 0.3), spacing_m=12.0,
+                           jitter_deg=0.0, boat_length_m=(7.0, 10.0), sail_share=0.2)]
+    return Riverside(RiversideParams(**p.model_dump(include=set(RiversideParams.model_fields))), trees, docks, fields)
 
 
 # --------------------------------------------------------------------------------------------- #

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import trimesh
 
+from worlds.crowns import Crowns
 from worlds.materials import Material
 from worlds.route import Route
 
@@ -17,8 +18,11 @@ if TYPE_CHECKING:
 
 PART_KINDS = (
     "water", "wall", "quay", "bank", "bridge_deck", "pier", "girder", "arch",
-    "lock_wall", "lock_gate", "building", "other",
+    "lock_wall", "lock_gate", "building", "tree", "foliage", "dock", "pontoon", "pile", "moored_boat", "other",
 )
+"""tree: trunks (solid: they block GNSS like any solid); foliage: porous crowns (GNSS crosses them
+attenuated, see `World.crowns`); dock: fixed piers on piles; pontoon: floating docks; pile: piles
+and mooring posts; moored_boat: hulls, cabins and masts of boats at docks and moorings."""
 
 
 @dataclass
@@ -42,13 +46,17 @@ class Part:
 
 @dataclass
 class World:
-    """A meshed river world in ENU metres about `origin` = (lat_deg, lon_deg, alt_m)."""
+    """A meshed river world in ENU metres about `origin` = (lat_deg, lon_deg, alt_m).
+
+    `crowns` are the envelopes of the foliage parts' crowns, for GNSS attenuation (empty if none).
+    """
 
     name: str
     parts: list[Part]
     route: Route
     origin: tuple[float, float, float]
     params: dict = field(default_factory=dict)
+    crowns: Crowns = field(default_factory=Crowns.empty)
 
     def __post_init__(self) -> None:
         if not self.parts:
@@ -82,14 +90,13 @@ class World:
     @cached_property
     def raycasting_scene(self) -> "o3d.t.geometry.RaycastingScene":
         """Open3D (Embree) scene of `mesh`, built once per world; geometry id 0."""
-        import open3d as o3d
+        return _scene(self.mesh)
 
-        scene = o3d.t.geometry.RaycastingScene()
-        scene.add_triangles(
-            o3d.core.Tensor(np.asarray(self.mesh.vertices, dtype=np.float32)),
-            o3d.core.Tensor(np.asarray(self.mesh.faces, dtype=np.uint32)),
-        )
-        return scene
+    @cached_property
+    def gnss_scene(self) -> "o3d.t.geometry.RaycastingScene":
+        """Scene of what blocks GNSS signals: every part but foliage (the same scene when there is none)."""
+        solid = [p.mesh for p in self.parts if not p.material.foliage]
+        return self.raycasting_scene if len(solid) == len(self.parts) else _scene(trimesh.util.concatenate(solid))
 
     def part(self, name: str) -> Part:
         """The part called `name`."""
@@ -101,3 +108,14 @@ class World:
     def parts_of_kind(self, *kinds: str) -> list[Part]:
         """All parts whose kind is one of `kinds`."""
         return [p for p in self.parts if p.kind in kinds]
+
+
+def _scene(mesh: trimesh.Trimesh) -> "o3d.t.geometry.RaycastingScene":
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
+        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
+    )
+    return scene

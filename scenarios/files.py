@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from scenarios import windows as win
 from scenarios.record import RunRecord
+from scenarios.traffic_log import TrafficLog
 
 TUM_HEADER = "# timestamp tx ty tz qx qy qz qw\n"
 
@@ -101,18 +102,14 @@ def write_vessel_csv(path: Path, log) -> None:
                         *_fmt((left, right), 4)])
 
 
-def write_movers_csv(path: Path, t: np.ndarray, scene) -> None:
-    """One row per scan time and mover of a sim.Scene's traffic: t, id, the mover's LiDAR label, x, y (world ENU, m),
-    yaw (deg from east)."""
-    traffic, first_label = scene.traffic, len(scene.world.parts)
-    poses = traffic.poses(t)  # (M, N, 4, 4)
+def write_movers_csv(path: Path, log: TrafficLog) -> None:
+    """One row per scan and mover: t, id, the mover's LiDAR label, x, y (world ENU, m), yaw (deg from east)."""
     with open(path, "w", newline="") as handle:
         w = csv.writer(handle)
         w.writerow(["t", "id", "label", "x", "y", "yaw_deg"])
-        for i, ti in enumerate(t):
-            for m, mid in enumerate(traffic.ids):
-                p = poses[m, i]
-                w.writerow([f"{ti:.3f}", mid, first_label + m, f"{p[0, 3]:.3f}", f"{p[1, 3]:.3f}",
+        for t, poses in zip(log.stamps, log.poses):
+            for m, (mid, p) in enumerate(zip(log.traffic.ids, poses)):
+                w.writerow([f"{t:.3f}", mid, log.first_label + m, f"{p[0, 3]:.3f}", f"{p[1, 3]:.3f}",
                             f"{np.degrees(np.arctan2(p[1, 0], p[0, 0])):.3f}"])
 
 

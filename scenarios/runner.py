@@ -33,7 +33,7 @@ from scenarios.feed import Feed, RunFailed, RunInterrupted  # noqa: F401 (RunFai
 from scenarios.matcher_pool import MatcherPool, MatcherSetup
 from scenarios.record import Recorder, RunRecord
 from scenarios.spec import Scenario
-from scenarios.traffic_log import MoverPoints
+from scenarios.traffic_log import TrafficLog
 from scenarios.vessel_run import VesselRun
 
 RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
@@ -104,12 +104,12 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     t_start, t_end = scenario.stretch.times(planned)
     vessel_run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
     trajectory = vessel_run.trajectory
-    scene, mover_points = vessel_run.world, MoverPoints(len(world.parts))
+    traffic_log = TrafficLog(vessel_run.world)
     recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], trajectory.mount)
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, trajectory.pose, nmea, lambda event: event.fix.nmea(), t_start)
-        feed.drive(mover_points.tap(vessel_run.events(feed)),
+        feed.drive(traffic_log.tap(vessel_run.events(feed)),
                    lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
                    (ValueError, RuntimeError, FloatingPointError))
         pool.close()
@@ -127,9 +127,9 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes,
         "failures": rec.failures,
     }
-    if scene.traffic:
-        run_info["mover_points"] = mover_points.metrics()
-        files.write_movers_csv(tmp / "movers.csv", rec.scan_t, scene)
+    if traffic_log.traffic:
+        run_info["mover_points"] = traffic_log.metrics()
+        files.write_movers_csv(tmp / "movers.csv", traffic_log)
     vessel_node = vessel_log.metrics(vessel_run.watch.log, scenario.control.clearance_threshold_m, lidar.revolution_s)
     files.write_vessel_csv(tmp / "vessel.csv", vessel_run.watch.log)
     return _write(scenario, tmp, rec, run_info, vessel_node, 1.0 / receiver.rate_hz, report)

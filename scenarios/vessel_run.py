@@ -14,6 +14,7 @@ from scenarios.stream import events as planned_events
 from scenarios.vessel_log import VesselWatch
 from sim.autopilot import Autopilot
 from sim.clearance import HullClearance
+from sim.compass import Compass, with_heading
 from sim.driven_trajectory import DrivenTrajectory
 from sim.scene import Scene
 from sim.traffic import build_traffic
@@ -51,7 +52,7 @@ class VesselRun:
         watch = VesselWatch(world, driven, clearance, lidar.revolution_s)
         end_station = float(planned.station(t_end))
         t_limit = t_start + control.time_limit_factor * (t_end - t_start)
-        scene = Scene(world, build_traffic(scenario.traffic, world, driven))
+        scene = Scene(world, build_traffic(scenario.traffic, world, driven, t_start))
         loop = ClosedLoop(scene, driven, lidar, receiver, watch, t_start, end_station, t_limit)
         return cls(scenario, scene, driven, watch, lidar, receiver, t_start, t_end, loop)
 
@@ -62,6 +63,8 @@ class VesselRun:
                            self.watch, self.lidar.revolution_s)
         control = self.scenario.control
         autopilot = Autopilot(self.world.route, control.dynamics, self.scenario.vessel.speed_mps, control.autopilot)
-        if control.steer_on == "truth":
-            return autopiloted(self.loop, autopilot, self.trajectory.pose)
-        return autopiloted(self.loop, autopilot, lambda t: feed.pose_of(control.steer_on))
+        believed = self.trajectory.pose if control.steer_on == "truth" else (lambda t: feed.pose_of(control.steer_on))
+        if control.heading == "estimator":
+            return autopiloted(self.loop, autopilot, believed)
+        compass = Compass(control.compass_sigma_deg, self.scenario.seed)
+        return autopiloted(self.loop, autopilot, lambda t: with_heading(believed(t), compass.yaw(self.trajectory, t)))

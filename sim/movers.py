@@ -104,16 +104,17 @@ class Crossing:
 class Chase:
     """Follows a vessel (anything with `.poses(ts)` world<-base_link) `distance_m` behind and `lateral_m` to the left
     of where it was `lag_s` earlier, level, on its heading then (lag > 0: in its wake, turning where it turned).
-    It asks the vessel only for times <= the time asked (clamped at 0), so a closed-loop vessel that knows only its
-    past can be chased."""
+    It asks the vessel only for times <= the time asked and >= `t_start` (where the vessel's trajectory begins),
+    so a closed-loop vessel that knows only its past can be chased."""
 
     vessel: object
     distance_m: float
     lateral_m: float
     lag_s: float = 0.0
+    t_start: float = 0.0
 
     def poses(self, ts: np.ndarray) -> np.ndarray:
-        target = self.vessel.poses(np.maximum(np.asarray(ts, dtype=float) - self.lag_s, 0.0))
+        target = self.vessel.poses(np.maximum(np.asarray(ts, dtype=float) - self.lag_s, self.t_start))
         yaw = np.arctan2(target[:, 1, 0], target[:, 0, 0])
         c, s = np.cos(yaw), np.sin(yaw)
         xy = target[:, :2, 3] + np.stack([-self.distance_m * c - self.lateral_m * s,

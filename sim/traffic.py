@@ -136,13 +136,14 @@ class TrafficConfig(BaseModel):
         return self
 
 
-def build_traffic(config: TrafficConfig | None, world, trajectory) -> Traffic:
-    """The movers of `config` over `world` (its route) and the ASV's `trajectory` (what a chase boat follows)."""
+def build_traffic(config: TrafficConfig | None, world, trajectory, t_start: float = 0.0) -> Traffic:
+    """The movers of `config` over `world` (its route) and the ASV's `trajectory` (what a chase boat follows, known
+    from `t_start` on)."""
     movers = []
     for spec in config.movers if config is not None else ():
         mesh, material = boat(spec.boat)
         if spec.kind == "chase":
-            motion = Chase(trajectory, spec.distance_m, spec.lateral_m, spec.lag_s)
+            motion = Chase(trajectory, spec.distance_m, spec.lateral_m, spec.lag_s, t_start)
         elif spec.kind == "crossing":
             margin = float(mesh.bounds[1, 0] - mesh.bounds[0, 0]) / 2 + LANDING_MARGIN_M
             motion = Crossing.across(world.route, spec.station_m, spec.time_s, spec.speed_mps, spec.angle_deg, margin)

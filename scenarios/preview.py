@@ -27,8 +27,10 @@ from worlds.world import World  # noqa: E402
 KIND_COLOURS = {
     "water": "#cfe8ff", "wall": "#7f7f7f", "quay": "#9e9e9e", "bank": "#8fbf6f", "bridge_deck": "#d62728",
     "pier": "#8c564b", "girder": "#ff7f0e", "arch": "#e377c2", "lock_wall": "#17becf", "lock_gate": "#1f77b4",
-    "building": "#4d4d4d", "other": "#bcbd22",
+    "building": "#4d4d4d", "tree": "#6b4226", "foliage": "#2ca02c", "dock": "#c49c94", "pontoon": "#dbdb8d",
+    "pile": "#7f7f7f", "moored_boat": "#f7f7f7", "other": "#bcbd22",
 }
+BRIDGE_MARGIN_M = 20.0  # revolutions this close to a bridge's GPS shadow count as "under_bridge"
 FIELD_STUDY_POINTS = (6_000, 27_000)  # points per revolution at which the study's matching succeeded
 
 
@@ -60,8 +62,42 @@ def sample_route(world: World, n_samples: int, seed: int, quiet: bool) -> tuple[
     return stats, densest, traj
 
 
+def stretch_names(world: World, stations: np.ndarray) -> np.ndarray:
+    """Name of the stretch of each route station: 'under_bridge' within BRIDGE_MARGIN_M of a bridge's
+    shadow, 'lock' in a lock chamber, else the world's own named stretches (params 'stretches'), else 'open'."""
+    stations = np.asarray(stations, dtype=float)
+    names = np.full(len(stations), "open", dtype=object)
+    for st in world.params.get("stretches", []):
+        names[(stations >= st["start_m"]) & (stations < st["end_m"])] = st["name"]
+    for st in world.params.get("structures", []):
+        if st["type"] == "lock":
+            names[(stations >= st["start_m"]) & (stations <= st["end_m"])] = "lock"
+        else:
+            near = (stations >= st["shadow_start_m"] - BRIDGE_MARGIN_M) & (stations <= st["shadow_end_m"] + BRIDGE_MARGIN_M)
+            names[near] = "under_bridge"
+    return names
+
+
+def point_stats(n_points: np.ndarray, n_water: np.ndarray) -> dict:
+    """Median, p10, p90 of points per revolution, share in the field study's band, share of water returns."""
+    lo, hi = FIELD_STUDY_POINTS
+    return {
+        "revolutions": len(n_points), "median": float(np.median(n_points)), "p10": float(np.percentile(n_points, 10)),
+        "p90": float(np.percentile(n_points, 90)), "share_in_field_study_band": float(np.mean((n_points >= lo) & (n_points <= hi))),
+        "water_return_share": float(n_water.sum() / max(n_points.sum(), 1)),
+    }
+
+
+def by_stretch(world: World, stats: list[RevolutionStats]) -> dict[str, dict]:
+    """`point_stats` of the revolutions in each stretch (see `stretch_names`), in route order."""
+    n = np.array([s.n_points for s in stats])
+    water = np.array([s.n_water for s in stats])
+    names = stretch_names(world, np.array([s.station_m for s in stats]))
+    return {name: point_stats(n[names == name], water[names == name]) for name in dict.fromkeys(names)}
+
+
 def summarise(world: World, stats: list[RevolutionStats], scan: Scan) -> dict:
-    """Summary numbers: world description, points per revolution and water share."""
+    """Summary numbers: world description, points per revolution and water share, overall and by stretch."""
     n = np.array([s.n_points for s in stats])
     water = np.array([s.n_water for s in stats])
     lo, hi = FIELD_STUDY_POINTS
@@ -73,6 +109,7 @@ def summarise(world: World, stats: list[RevolutionStats], scan: Scan) -> dict:
         },
         "share_in_field_study_band": float(np.mean((n >= lo) & (n <= hi))),
         "water_return_share": float(water.sum() / max(n.sum(), 1)),
+        "by_stretch": by_stretch(world, stats),
         "seconds_per_revolution_median": float(np.median([s.seconds for s in stats])),
         "densest_scan": {
             "stamp": scan.stamp,

@@ -72,8 +72,8 @@ def test_rays_through_crowns_pass_as_often_as_the_leaf_density_says_and_hit_insi
     assert 0.35 < cos.mean() < 0.65 and cos.std() > 0.2  # random orientation: mean |cos| 1/2
 
 
-def _sky_world(extra_parts=(), crowns=Crowns.empty()) -> World:
-    return World("sky", [gw.water_part(), *extra_parts], gw.route(), gw.ORIGIN, crowns=crowns)
+def _sky_world(extra_parts=(), crowns=None) -> World:
+    return World("sky", [gw.water_part(), *extra_parts], gw.route(), gw.ORIGIN, crowns=crowns or Crowns.empty())
 
 
 def test_satellite_behind_a_crown_loses_the_documented_db_and_one_behind_a_building_is_blocked():

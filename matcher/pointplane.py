@@ -29,9 +29,11 @@ def point_to_plane_fit(
     target_tree: cKDTree,
     max_distance_m: float,
     tukey_k_m: float,
+    target_weights: np.ndarray | None = None,
 ) -> PlaneFit:
     """Pair each source point moved by T with its nearest target point within max_distance_m and
-    weigh the plane residual with Tukey's biweight (k = tukey_k_m); residuals beyond k are outliers."""
+    weigh the plane residual with Tukey's biweight (k = tukey_k_m), times the partner's entry in
+    target_weights if given (how far its normal can be trusted); residuals beyond k are outliers."""
     q = transform(source, T[:3, :3], T[:3, 3])
     dist, idx = target_tree.query(q, distance_upper_bound=max_distance_m)
     paired = np.isfinite(dist)
@@ -39,6 +41,8 @@ def point_to_plane_fit(
     n = target_normals[idx]
     e = np.einsum("ij,ij->i", n, q - target[idx])
     w = np.clip(1.0 - (e / tukey_k_m) ** 2, 0.0, None) ** 2
+    if target_weights is not None:
+        w = w * target_weights[idx]
     J = np.hstack([n, np.cross(q, n)])
     H = gram(J, w)
     weight = float(w.sum())

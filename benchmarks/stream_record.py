@@ -8,7 +8,8 @@ of the simulating code (worlds/, sim/, matcher/, scenarios/stream.py), and reuse
 `--set section.key=value` (repeatable; values typed as TOML, as `riverbench run --set`) passes
 extra keyword arguments to what the stream is built from: `world` (the preset's parameters),
 `vessel` (sim.Trajectory), `lidar` (sim.HDL32E), `gnss` (sim.GnssReceiver), `matcher` (its params),
-so that a recording can be made again in a changed world (e.g. with trees or moving boats).
+`traffic` (sim.TrafficConfig: moving boats, e.g. `traffic.movers=[{kind="chase"}]`), so that a
+recording can be made again in a changed world.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from scenarios.overrides import parse_value
 from scenarios.stream import FixEvent, events, pose_xyzyaw
 from sim.gnss import GnssReceiver
 
-SECTIONS = ("world", "vessel", "lidar", "gnss", "matcher")
+SECTIONS = ("world", "vessel", "lidar", "gnss", "matcher", "traffic")
 
 
 @dataclass
@@ -59,17 +60,36 @@ def parse_settings(assignments: list[str]) -> dict[str, dict]:
     return settings
 
 
-def record(world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None, every_s: float = 120.0,
-           settings: dict | None = None) -> Recording:
-    """Simulate the real stack (world, Trajectory, HDL32E, GnssReceiver, matcher) once and keep what the filters see."""
+@dataclass
+class Stream:
+    """What one recording simulates: the scene the sensors see (the world, with traffic if any), the
+    vessel's trajectory, the LiDAR, the receiver and the matcher's parameters."""
+
+    scene: object
+    trajectory: sim.Trajectory
+    lidar: sim.HDL32E
+    receiver: GnssReceiver
+    matcher_params: dict
+
+
+def build(world_name: str, seed: int, settings: dict | None = None) -> Stream:
+    """The stream's parts for a world and seed, with the `--set` settings applied."""
     opts = {section: dict((settings or {}).get(section, {})) for section in SECTIONS}
     world = worlds.load(world_name, **opts["world"])
     trajectory = sim.Trajectory(world, seed=seed, **opts["vessel"])
+    scene = sim.Scene(world, sim.build_traffic(sim.TrafficConfig(**opts["traffic"]), world, trajectory)) if opts["traffic"] else world
+    return Stream(scene, trajectory, sim.HDL32E(seed=seed, **opts["lidar"]), GnssReceiver(seed=seed, **opts["gnss"]), opts["matcher"])
+
+
+def record(world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None, every_s: float = 120.0,
+           settings: dict | None = None) -> Recording:
+    """Simulate the real stack (world, Trajectory, HDL32E, GnssReceiver, matcher) once and keep what the filters see."""
+    stream = build(world_name, seed, settings)
+    trajectory = stream.trajectory
     t_end = trajectory.duration if t_end is None else min(t_end, trajectory.duration)
-    m = matcher.create(matcher_name, **opts["matcher"])
-    lidar, receiver = sim.HDL32E(seed=seed, **opts["lidar"]), GnssReceiver(seed=seed, **opts["gnss"])
+    m = matcher.create(matcher_name, **stream.matcher_params)
     items, start, next_report = [], time.perf_counter(), t_start + every_s
-    for event in events(world, trajectory, lidar, receiver, t_start, t_end):
+    for event in events(stream.scene, trajectory, stream.lidar, stream.receiver, t_start, t_end):
         if isinstance(event, FixEvent):
             items.append(("fix", event.stamp, event.fix))
         else:

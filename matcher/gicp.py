@@ -1,12 +1,14 @@
 """gicp: small_gicp's Generalized-ICP scan-to-scan on de-skewed scans, a fast 6-DoF reference.
 
-Its covariance and degeneracy come from the point-to-plane information of the solution, not from
-GICP's own Hessian: GICP's covariances are regularised to eigenvalues (1, 1, 1e-3), so every point
-also pulls its partner within their common plane, with 1/1000 of the weight it has across it. Over
-thousands of points on a deck and on piers parallel to the route that pull adds up to an
-information the scene does not have (the ring pattern the sensor draws on a flat surface moves with
-it: under charles_river's Charlestown Bridge GICP reported the boat stopped, +-1 cm, at the deck's
-edges). Along a direction the planes leave free, the motion prior is kept (matcher.remap)."""
+Its covariance and degeneracy come from the point-to-plane information of the solution, each
+reference point's normal weighed by its planarity (matcher.planarity), not from GICP's own Hessian.
+That Hessian counts every point with the normal small_gicp fitted to its 12 neighbours; where those
+lie on one scan line (a deck overhead seen at a grazing angle, a far wall) the normal is free to
+turn about the line, and such points fake information along the surface: the ring pattern the
+sensor draws on it moves with the sensor, so they favour "no motion". Under charles_river's
+Charlestown Bridge (a flat deck, piers at 10 deg to the route) GICP reported the boat stopped,
++-1 cm, while entering and leaving the deck. Along a direction the planes leave free, the motion
+prior is kept (matcher.remap)."""
 
 from __future__ import annotations
 

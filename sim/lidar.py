@@ -115,11 +115,13 @@ class HDL32E:
         t_hit = hit["t_hit"].numpy()
         # incidence for every ray in one pass: cheaper than gathering normals and directions
         cos_all = np.abs(np.einsum("ij,ij->i", hit["primitive_normals"].numpy(), rays[:, 3:]))
-        mover = None
+        primitive = hit["primitive_ids"].numpy()
+        movers_hit = None
         if traffic:
-            mover = self._mover_rays.cast(traffic, t0, knots, poses, t_hit, cos_all, cfg.max_range_m)
+            movers_hit = self._mover_rays.cast(traffic, t0, knots, poses, t_hit, cos_all, cfg.max_range_m)
+            primitive[movers_hit[0]] = 0  # any valid face: _surfaces relabels these rays
         ray_index = np.flatnonzero((t_hit <= cfg.max_range_m) & self._visible(trajectory))
-        part, reflectivity, water = _surfaces(world, traffic, hit["primitive_ids"].numpy(), mover, ray_index)
+        part, reflectivity, water = _surfaces(world, traffic, primitive, movers_hit, ray_index)
         rng_true = t_hit[ray_index].astype(np.float64)
         cos_inc = cos_all[ray_index]
 
@@ -190,17 +192,17 @@ class HDL32E:
         return self._occlusion[key]
 
 
-def _surfaces(world: World, traffic: Traffic, primitive: np.ndarray, mover: np.ndarray | None,
+def _surfaces(world: World, traffic: Traffic, primitive: np.ndarray, movers_hit: tuple[np.ndarray, np.ndarray] | None,
               ray_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Label, reflectivity and water flag of each returned ray's surface: a world part, or mover i as label
-    len(world.parts) + i (`mover`: per ray, the mover hit or -1; None without traffic)."""
-    if mover is None:
-        part = world.face_part[primitive[ray_index]]
-        return part, world.part_reflectivity[part], world.part_is_water[part]
-    hit_mover = mover[ray_index]
-    on = hit_mover >= 0
-    part = np.empty(len(ray_index), dtype=np.uint16)
-    part[~on] = world.face_part[primitive[ray_index[~on]]]
-    part[on] = len(world.parts) + hit_mover[on]
-    reflectivity = np.r_[world.part_reflectivity, traffic.reflectivity][part]
-    return part, reflectivity, np.r_[world.part_is_water, np.zeros(len(traffic), dtype=bool)][part]
+    """Label, reflectivity and water flag of each returned ray (ray_index, sorted) from the world face it hit, then,
+    for the rays a mover hit first (movers_hit: sorted rays, mover index), mover i as label len(world.parts) + i."""
+    part = world.face_part[primitive[ray_index]]
+    reflectivity, water = world.part_reflectivity[part], world.part_is_water[part]
+    if movers_hit is not None:
+        rays, mover = movers_hit
+        at = np.minimum(np.searchsorted(ray_index, rays), len(ray_index) - 1)
+        returned = ray_index[at] == rays if len(ray_index) else np.zeros(len(rays), dtype=bool)
+        at, mover = at[returned], mover[returned]
+        part[at] = len(world.parts) + mover
+        reflectivity[at], water[at] = traffic.reflectivity[mover], False
+    return part, reflectivity, water

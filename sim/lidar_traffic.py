@@ -22,6 +22,8 @@ from sim.traffic import Traffic
 
 SPHERE_PAD_M = 0.01
 """Added to each mover's bounding-sphere radius in the ray selection (float32 ray directions, interpolation)."""
+SLAB_PAD_RAD = 1e-3
+"""Added to the slab's elevation window besides the sensor's tilt (float32 ray directions)."""
 MOVER_KNOT_FIRINGS = 64
 """Firings between two evaluations of a mover's pose."""
 
@@ -53,6 +55,7 @@ class MoverRays:
         first, last = azimuth[knot_firing[:-1], 0], azimuth[knot_firing[1:] - 1, -1]
         self.az_mid, self.az_half = (first + last) / 2.0, (first - last) / 2.0
         elevation = np.arcsin(ray_dir[0, :, 2])
+        self.laser_el = elevation
         self.el_lo, self.el_hi = float(elevation.min()), float(elevation.max())
         # direction of the middle of each (interval, laser) cell; a ray lies within az_half of it
         self.cell_dir = np.stack([np.cos(elevation) * np.cos(self.az_mid)[:, None],
@@ -62,8 +65,9 @@ class MoverRays:
         self.mover_knot_t = mover_knot * firing_s
 
     def cast(self, traffic: Traffic, t0: float, lidar_knots: np.ndarray, firing_poses: np.ndarray,
-             t_hit: np.ndarray, cos_inc: np.ndarray, max_range_m: float) -> np.ndarray:
-        """Update t_hit and cos_inc (per ray, in place) where a mover is nearer; (n_rays,) int16 mover index, -1 none.
+             t_hit: np.ndarray, cos_inc: np.ndarray, max_range_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """Update t_hit and cos_inc (per ray, in place) where a mover is nearer; the rays a mover hit first (sorted)
+        and that mover's index.
 
         lidar_knots (K + 1, 4, 4) and firing_poses (n_firings + 1, 4, 4): world<-lidar of the revolution at t0.
         Every step but each mover's own cast runs on all movers at once.
@@ -72,12 +76,16 @@ class MoverRays:
         knots = traffic.poses(t0 + self.mover_knot_t)  # (M, mover knots, 4, 4)
         centre = np.stack([m.sphere[0] for m in traffic.movers])
         radius = np.array([m.sphere[1] for m in traffic.movers])
+        half = np.stack([np.ptp(np.asarray(m.mesh.bounds), axis=0) / 2.0 for m in traffic.movers])
+        half_height = np.einsum("mkj,mj->mk", np.abs(knots[..., 2, :3]), half).max(axis=1)  # of the box, over the revolution
         world_centre = np.einsum("mkij,mj->kmi", knots[..., :3, :3], centre) + knots[..., :3, 3].transpose(1, 0, 2)
-        p = np.einsum("kji,kmj->mki", lidar_knots[:, :3, :3],  # sphere centres in the lidar frame at the sensor knots
-                      self._at_firings(world_centre, self.knot_firing) - lidar_knots[:, None, :3, 3])
-        rays, mover, grid_mover, grid_firing, at = self._candidates(p, radius, t_hit, max_range_m)
+        rel = self._at_firings(world_centre, self.knot_firing) - lidar_knots[:, None, :3, 3]  # (K + 1, M, 3) world
+        p = np.einsum("kji,kmj->mki", lidar_knots[:, :3, :3], rel)  # sphere centres in the lidar frame
+        tilt = np.arccos(np.clip(lidar_knots[:, 2, 2], -1.0, 1.0))
+        rays, mover, grid_mover, grid_firing, at = self._candidates(p, radius, rel.transpose(1, 0, 2), half_height,
+                                                                    np.maximum(tilt[:-1], tilt[1:]), t_hit, max_range_m)
         if not len(rays):
-            return mover_of_ray
+            return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.int16)
         inv = rigid_inverse(knots.reshape(-1, 4, 4)).reshape(knots.shape)
         i, frac = self.mover_index[grid_firing], self.mover_frac[grid_firing, None, None]
         body_of_lidar = (inv[grid_mover, i] + frac * (inv[grid_mover, i + 1] - inv[grid_mover, i])) @ firing_poses[grid_firing]
@@ -95,7 +103,17 @@ class MoverRays:
             t_hit[won] = t_mover[nearer]
             cos_inc[won] = np.abs(np.einsum("ij,ij->i", normals[nearer], directions[mine[nearer]]))
             mover_of_ray[won] = index
-        return mover_of_ray
+        hit = np.flatnonzero(mover_of_ray >= 0)
+        return hit, mover_of_ray[hit]
+
+    @staticmethod
+    def _slab(rel: np.ndarray, half_height: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World elevation window (low, high) of a slab of half_height about centres rel (P, 3) from the sensor, whose
+        points lie within `reach` (P,) of the centre horizontally."""
+        horizontal = np.hypot(rel[:, 0], rel[:, 1])
+        near, far = np.maximum(horizontal - reach, 1e-6), horizontal + reach
+        bottom, top = rel[:, 2] - half_height, rel[:, 2] + half_height
+        return (np.arctan2(bottom, np.where(bottom < 0, near, far)), np.arctan2(top, np.where(top < 0, far, near)))
 
     def _at_firings(self, values: np.ndarray, firing: np.ndarray) -> np.ndarray:
         """Values given at the mover knots (first axis) interpolated linearly to the firings `firing`."""
@@ -103,10 +121,15 @@ class MoverRays:
         frac = self.mover_frac[firing].reshape(-1, *([1] * (values.ndim - 1)))
         return values[i] + frac * (values[i + 1] - values[i])
 
-    def _candidates(self, p: np.ndarray, radius: np.ndarray, t_hit: np.ndarray, max_range_m: float):
-        """Rays that may meet the movers' bounding spheres (radius (M,) about p (M, K + 1, 3), in the lidar frame at
-        each sensor knot) before their current hit: (rays, their mover, the (mover, firing) grid of the candidate
-        intervals as grid_mover and grid_firing, each ray's row in that grid)."""
+    def _candidates(self, p: np.ndarray, radius: np.ndarray, rel: np.ndarray, half_height: np.ndarray, tilt: np.ndarray,
+                    t_hit: np.ndarray, max_range_m: float):
+        """Rays that may meet the movers before their current hit: (rays, their mover, the (mover, firing) grid of the
+        candidate intervals as grid_mover and grid_firing, each ray's row in that grid).
+
+        A mover is bounded by a sphere (radius (M,) about p (M, K + 1, 3), its centre in the lidar frame at each
+        sensor knot) and by a horizontal slab (half_height (M,) about the centre, rel (M, K + 1, 3) in the world
+        frame): the slab's elevation window, widened by the sensor's tilt (K,), cuts most of the sphere's lasers.
+        """
         r = radius[:, None] + SPHERE_PAD_M + np.linalg.norm(np.diff(p, axis=1), axis=2)  # (M, K)
         p = p[:, :-1]
         dist = np.linalg.norm(p, axis=2)
@@ -122,7 +145,11 @@ class MoverRays:
         # cells whose middle is within the cone widened by the cell's own azimuth half-width
         axis = p[mi, ji] / np.maximum(dist[mi, ji], 1e-9)[:, None]
         reach = np.cos(np.minimum(half_cone[mi, ji] + self.az_half[ji], np.pi))
-        pair, laser = np.nonzero(np.einsum("plk,pk->pl", self.cell_dir[ji], axis) >= reach[:, None])
+        in_cone = np.einsum("plk,pk->pl", self.cell_dir[ji], axis) >= reach[:, None]
+        low, high = self._slab(rel[mi, ji], half_height[mi] + r[mi, ji] - radius[mi], r[mi, ji])
+        pad = tilt[ji] + SLAB_PAD_RAD
+        in_slab = (self.laser_el >= (low - pad)[:, None]) & (self.laser_el <= (high + pad)[:, None])
+        pair, laser = np.nonzero(in_cone & in_slab)
         step = np.arange(self.fires.max())
         grid_firing = np.minimum(self.knot_firing[ji][:, None] + step, self.knot_firing[-1]).ravel()
         valid = step < self.fires[ji[pair]][:, None]

@@ -22,7 +22,7 @@ from worlds.boats import Boats, build_boats, draw
 from worlds.channel import Centerline
 from worlds.geometry import box, merge, pipe
 from worlds.materials import STEEL, TIMBER
-from worlds.placement import SOLID_KINDS, RouteDistance, SolidDistance, clearance, edge
+from worlds.placement import SOLID_KINDS, Edges, RouteDistance, SolidDistance
 from worlds.world import Part
 
 PIER_DECK_M = (0.9, 1.2)
@@ -74,7 +74,7 @@ class MooringField(BoatMix):
     jitter_deg: float = Field(20.0, ge=0.0, le=90.0, description="spread of the boats' headings about upstream, deg (0: a tidy line along a quay)")
 
 
-def build_moorings(docks: list[Dock], fields: list[MooringField], line: Centerline, parts: list[Part], seed: int,
+def build_moorings(docks: list[Dock], fields: list[MooringField], line: Centerline, edges: Edges, parts: list[Part], seed: int,
                    density: float, route_distance: RouteDistance, clearance_m: float,
                    with_docks: bool, with_boats: bool) -> tuple[list[Part], list[Dock]]:
     """Dock, pontoon and pile parts (when `with_docks`) and moored-boat parts (when `with_boats`;
@@ -98,9 +98,9 @@ def build_moorings(docks: list[Dock], fields: list[MooringField], line: Centerli
             out.append(Part(f"{kind}s_{material}", kind, {"timber": TIMBER, "steel": STEEL}[material], merge(m)))
     if not with_boats:
         return out, placed
-    docked = _afloat(Boats.concatenate(boats), line, route_distance, clearance_m, solids)
+    docked = _afloat(Boats.concatenate(boats), edges, route_distance, clearance_m, solids)
     crowded = SolidDistance(parts + out + build_boats(docked), SOLID_KINDS + DOCK_KINDS + ("moored_boat",))
-    moored = _afloat(Boats.concatenate([_field(f, line, rng, density) for f in fields]), line, route_distance, clearance_m, crowded)
+    moored = _afloat(Boats.concatenate([_field(f, line, rng, density) for f in fields]), edges, route_distance, clearance_m, crowded)
     return out + build_boats(Boats.concatenate([docked, moored])), placed
 
 
@@ -163,7 +163,7 @@ def _field(field: MooringField, line: Centerline, rng: np.random.Generator, dens
     return Boats(xy=xy, heading=heading, **size)
 
 
-def _afloat(boats: Boats, line: Centerline, route_distance: RouteDistance, clearance_m: float, solids: SolidDistance) -> Boats:
+def _afloat(boats: Boats, edges: Edges, route_distance: RouteDistance, clearance_m: float, solids: SolidDistance) -> Boats:
     """The boats whose footprint is on the water on both sides' terms, `clearance_m` from the route
     and clear of `solids` by half its length."""
     if not len(boats):
@@ -171,6 +171,6 @@ def _afloat(boats: Boats, line: Centerline, route_distance: RouteDistance, clear
     corners = boats.corners().reshape(-1, 2)
     ok = route_distance(corners).reshape(-1, 4).min(axis=1) >= clearance_m
     for side in ("left", "right"):
-        ok &= clearance(edge(line, side), corners).reshape(-1, 4).max(axis=1) <= -BERTH_GAP_M
+        ok &= edges.clearance(side, corners).reshape(-1, 4).max(axis=1) <= -BERTH_GAP_M
     ok &= solids(np.c_[boats.xy, np.full(len(boats), 0.5)]) > boats.length / 2
     return boats.take(ok)

@@ -36,6 +36,17 @@ def clearance(edge_line: tuple[np.ndarray, np.ndarray], pts: np.ndarray) -> np.n
     return d[np.arange(len(pts)), k] * side
 
 
+class Edges:
+    """Both channel edges of a centreline, untangled once, for many `clearance` queries."""
+
+    def __init__(self, line: Centerline):
+        self._edges = {side: edge(line, side) for side in ("left", "right")}
+
+    def clearance(self, side: str, pts: np.ndarray) -> np.ndarray:
+        """`clearance` from the edge on `side` (negative on the water side)."""
+        return clearance(self._edges[side], pts) if len(pts) else np.zeros(0)
+
+
 class RouteDistance:
     """Horizontal distance from points to the route polyline (resampled every 0.25 m: error < 1 cm)."""
 

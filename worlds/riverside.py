@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from worlds.channel import Centerline, ChannelParams
 from worlds.crowns import Crowns
 from worlds.moorings import Dock, MooringField, build_moorings
-from worlds.placement import RouteDistance, SolidDistance
+from worlds.placement import Edges, RouteDistance, SolidDistance
 from worlds.route import Route
 from worlds.vegetation import Foliage, TreeRow, build_trees
 from worlds.world import Part
@@ -52,14 +52,14 @@ def build_riverside(riverside: Riverside, route: Route, line: Centerline, channe
     names = [d.name for d in riverside.docks] + [f.name for f in riverside.fields]
     if len(set(names)) != len(names):
         raise ValueError(f"dock and mooring field names must be unique, got {names}")
-    near_route = RouteDistance(route)
+    near_route, edges = RouteDistance(route), Edges(line)
     out: list[Part] = []
     crowns = Crowns.empty()
     if p.vegetation and riverside.trees:
-        trees, crowns = build_trees(riverside.trees, line, channel, seed, p.tree_density, p.foliage, near_route,
+        trees, crowns = build_trees(riverside.trees, line, edges, channel, seed, p.tree_density, p.foliage, near_route,
                                     SolidDistance(parts), p.route_clearance_m)
         out += trees
-    moorings, docks = build_moorings(riverside.docks, riverside.fields, line, parts, seed, p.mooring_density, near_route,
+    moorings, docks = build_moorings(riverside.docks, riverside.fields, line, edges, parts, seed, p.mooring_density, near_route,
                                      p.route_clearance_m, p.docks, p.moored_boats)
     out += moorings
     summary = {

@@ -22,7 +22,7 @@ from sim.rng import stream
 from worlds.channel import Centerline, ChannelParams, ground_height
 from worlds.crowns import Crowns
 from worlds.materials import TIMBER, VEGETATION
-from worlds.placement import RouteDistance, SolidDistance, clearance, edge
+from worlds.placement import Edges, RouteDistance, SolidDistance
 from worlds.world import Part
 
 TRUNK_SECTIONS = 6
@@ -66,13 +66,13 @@ class Foliage(BaseModel):
     facet_m: float = Field(1.5, ge=0.2, le=3.0, description="side of the equilateral foliage facets (leaf clusters), m")
 
 
-def build_trees(rows: list[TreeRow], line: Centerline, channel: ChannelParams, seed: int, density: float,
+def build_trees(rows: list[TreeRow], line: Centerline, edges: Edges, channel: ChannelParams, seed: int, density: float,
                 foliage: Foliage, route_distance: RouteDistance, solids: SolidDistance,
                 clearance_m: float) -> tuple[list[Part], Crowns]:
     """Trunk and crown parts of every tree that stands on land, keeps `clearance_m` from the route
     with its crown, and touches no solid structure; and the crowns' envelopes."""
     rng = stream(seed, "worlds.vegetation")
-    trees = [_place(row, line, channel, rng, density) for row in rows]
+    trees = [_place(row, line, edges, channel, rng, density) for row in rows]
     base, height, radius, trunk_r, crown_h = (np.concatenate([t[k] for t in trees] + [np.zeros((0, 3) if k == 0 else 0)]) for k in range(5))
     centre = base + np.c_[np.zeros((len(base), 2)), height - crown_h]
     reach = np.maximum(radius, crown_h)
@@ -88,7 +88,7 @@ def build_trees(rows: list[TreeRow], line: Centerline, channel: ChannelParams, s
     return [Part("tree_trunks", "tree", TIMBER, trunks), Part("tree_crowns", "foliage", VEGETATION, _facets(crowns, foliage, rng))], crowns
 
 
-def _place(row: TreeRow, line: Centerline, channel: ChannelParams, rng: np.random.Generator, density: float):
+def _place(row: TreeRow, line: Centerline, edges: Edges, channel: ChannelParams, rng: np.random.Generator, density: float):
     """Candidate trees of one row: base point (ground under the trunk), height, crown radius, trunk radius,
     crown half-height."""
     start, end = max(row.start_m, float(line.s[0])), min(row.end_m, float(line.s[-1]))
@@ -104,7 +104,7 @@ def _place(row: TreeRow, line: Centerline, channel: ChannelParams, rng: np.rando
     xy, nl, wl, wr = line.sample(station)
     width = wl if row.side == "left" else wr
     xy = xy + line.side_sign(row.side) * nl * (width + setback)[:, None]
-    on_land = clearance(edge(line, row.side), xy) >= 0.5 if len(xy) else np.zeros(0, bool)
+    on_land = edges.clearance(row.side, xy) >= 0.5
     z = ground_height(channel, row.side, station, setback)
     return np.c_[xy, z][on_land], height[on_land], radius[on_land], trunk_r[on_land], crown_h[on_land]
 

@@ -89,7 +89,7 @@ class FacadeIndex:
         """
         mesh = world.mesh
         reflective = np.array([p.material.gnss_reflective for p in world.parts], dtype=bool)
-        closed = np.array([p.mesh.is_watertight for p in world.parts], dtype=bool)
+        closed = np.array([p.material.gnss_reflective and p.mesh.is_watertight for p in world.parts], dtype=bool)  # others are never kept
         normals = np.asarray(mesh.face_normals)
         keep = reflective[world.face_part] & (np.abs(normals[:, 2]) < VERTICAL_NZ)
         keep &= np.asarray(mesh.area_faces) >= MIN_FACET_AREA_M2

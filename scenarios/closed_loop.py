@@ -51,7 +51,7 @@ class ClosedLoop:
         if contact is None:
             events.append(ScanEvent(t0, self.lidar.scan(self.world, self.trajectory, t0)))
         until = t1 if contact is None else contact.t
-        while (t_fix := self.t_start + self._fixes / self.receiver.rate_hz) < until - 1e-9:
+        while (t_fix := self.t_start + self._fixes / self.receiver.rate_hz) < until:
             events.append(FixEvent(t_fix, self.receiver.fix(self.world, self.trajectory, t_fix)))
             self._fixes += 1
         self.t = t1
@@ -64,10 +64,10 @@ class ClosedLoop:
         return events
 
 
-def autopiloted(loop: ClosedLoop, autopilot: Autopilot, steer: Callable[[float], np.ndarray]) -> Iterator[ScanEvent | FixEvent]:
-    """The loop's events with the autopilot steering on `steer(t)` (the pose it is given at each period start)."""
+def autopiloted(loop: ClosedLoop, autopilot: Autopilot, steer: Callable[[float], tuple[np.ndarray, float | None]]) -> Iterator[ScanEvent | FixEvent]:
+    """The loop's events with the autopilot steering on `steer(t)`: the pose and gyro yaw rate (or None) it is given at each period start."""
     while not loop.done:
-        yield from loop.step(autopilot.commands(loop.t, steer(loop.t)))
+        yield from loop.step(autopilot.commands(loop.t, *steer(loop.t)))
 
 
 def watched(events: Iterator, watch: VesselWatch, revolution_s: float) -> Iterator:

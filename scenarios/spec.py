@@ -170,12 +170,18 @@ class Control(BaseModel):
     """How the vessel moves. `open_loop`: it follows the route exactly, whatever the estimators
     believe. `closed_loop`: the WAM-V model driven by the baseline autopilot, steering on the pose
     of the estimator `steer_on` (or on the truth, the reference), until the end of the stretch, a
-    collision or the time limit. Clearance and cross-track metrics are kept in both modes."""
+    collision or the time limit. Its heading comes from the boat's compass by default, as on every
+    ASV (GPS course over ground, gps_only's yaw, cannot close a heading loop). Clearance and
+    cross-track metrics are kept in both modes."""
 
     model_config = ConfigDict(extra="forbid")
 
     mode: Literal["open_loop", "closed_loop"] = Field("open_loop", description="open_loop or closed_loop")
     steer_on: str = Field("truth", description="closed loop: id of the estimator the autopilot steers on, or 'truth'")
+    heading: Literal["compass", "estimator"] = Field(
+        "compass", description="closed loop: the heading the autopilot steers on: the boat's compass (AHRS) or the estimator's yaw")
+    compass_sigma_deg: float = Field(1.0, ge=0, description="closed loop: white noise of the compass heading (1-sigma)")
+    gyro_sigma_dps: float = Field(0.3, ge=0, description="closed loop: white noise of the gyro's yaw rate (1-sigma, deg/s)")
     autopilot: AutopilotConfig = Field(default_factory=AutopilotConfig, description="gains of the LOS autopilot")
     dynamics: WamvDynamics = Field(default_factory=WamvDynamics, description="the WAM-V 16 manoeuvring model")
     current_enu_mps: tuple[float, float] = Field((0.0, 0.0), description="closed loop: uniform water current (east, north), m/s")

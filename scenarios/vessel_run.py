@@ -14,6 +14,7 @@ from scenarios.stream import events as planned_events
 from scenarios.vessel_log import VesselWatch
 from sim.autopilot import Autopilot
 from sim.clearance import HullClearance
+from sim.compass import Compass, with_heading
 from sim.driven_trajectory import DrivenTrajectory
 from sim.scene import Scene
 from sim.traffic import build_traffic
@@ -62,6 +63,13 @@ class VesselRun:
                            self.watch, self.lidar.revolution_s)
         control = self.scenario.control
         autopilot = Autopilot(self.world.route, control.dynamics, self.scenario.vessel.speed_mps, control.autopilot)
-        if control.steer_on == "truth":
-            return autopiloted(self.loop, autopilot, self.trajectory.pose)
-        return autopiloted(self.loop, autopilot, lambda t: feed.pose_of(control.steer_on))
+        believed = self.trajectory.pose if control.steer_on == "truth" else (lambda t: feed.pose_of(control.steer_on))
+        if control.heading == "estimator":
+            return autopiloted(self.loop, autopilot, lambda t: (believed(t), None))
+        compass = Compass(control.compass_sigma_deg, control.gyro_sigma_dps, self.scenario.seed)
+
+        def steer(t: float) -> tuple[np.ndarray, float]:
+            yaw, rate = compass.read(self.trajectory, t, self.t_start)
+            return with_heading(believed(t), yaw), rate
+
+        return autopiloted(self.loop, autopilot, steer)

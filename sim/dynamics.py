@@ -11,22 +11,22 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-WATER_DENSITY = 997.8  # kg/m^3, fresh water as in VRX
-
-
 class WamvDynamics(BaseModel):
     """WAM-V 16 parameters. Mass, inertia, damping and thrusters: the VRX model (Bingham et al., "Toward
     Maritime Robotic Simulation in Gazebo", OCEANS 2019), identified on a real WAM-V. VRX sets the
-    added mass to zero; here it is the strip-theory estimate for two slender demihulls (draft
-    `draft_m`, length 4.9 m): sway rho*pi*d^2/2 per metre per hull, yaw the same times L^2/12,
-    surge 5% of the mass (Fossen's slender-body rule of thumb)."""
+    added mass to zero. Here it is small and explicit: surge 5% of the mass (Fossen's slender-body
+    rule of thumb), sway 10%, yaw 10% of the inertia (two shallow inflatable demihulls, ~0.12 m
+    draft, displace little water). Sway added mass above ~23 kg would, with VRX's sway damping,
+    make the straight course unstable through the Munk moment (Yv Nr < m11 (m22 - m11) U^2 at full
+    speed), which a real WAM-V on its skegs is not; tests check the straight course is stable."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     mass_kg: float = Field(180.0, gt=0, description="rigid-body mass (VRX wamv_base)")
     inertia_z_kgm2: float = Field(446.0, gt=0, description="yaw moment of inertia (VRX wamv_base)")
-    hull_length_m: float = Field(4.9, gt=0, description="demihull length (added mass in sway and yaw)")
-    draft_m: float = Field(0.12, gt=0, description="demihull draft at 180 kg (added mass in sway and yaw)")
+    added_mass_surge_kg: float = Field(9.0, ge=0, description="-X_udot: 5% of the mass")
+    added_mass_sway_kg: float = Field(18.0, ge=0, description="-Y_vdot: 10% of the mass")
+    added_inertia_yaw_kgm2: float = Field(44.6, ge=0, description="-N_rdot: 10% of the yaw inertia")
     x_u: float = Field(51.3, ge=0, description="linear surge damping, N s/m (VRX xU)")
     x_uu: float = Field(72.4, ge=0, description="quadratic surge damping, N s^2/m^2 (VRX xUU)")
     y_v: float = Field(40.0, ge=0, description="linear sway damping, N s/m (VRX yV)")
@@ -37,11 +37,6 @@ class WamvDynamics(BaseModel):
     max_thrust_rev_n: float = Field(100.0, gt=0, description="one thruster's force at command -1 (VRX maxForceRev)")
     thruster_x_m: float = Field(-2.373776, description="thrusters' position aft of base_link (VRX)")
     thruster_y_m: float = Field(1.027135, gt=0, description="each thruster's distance from the centreline (VRX)")
-
-    def added_mass(self) -> tuple[float, float, float]:
-        """(X_udot, Y_vdot, N_rdot) as positive magnitudes: kg, kg, kg m^2."""
-        sway = 2.0 * WATER_DENSITY * np.pi * self.draft_m**2 / 2.0 * self.hull_length_m
-        return 0.05 * self.mass_kg, sway, sway * self.hull_length_m**2 / 12.0
 
     def thrust(self, commands: np.ndarray) -> np.ndarray:
         """Forces (N) of the (left, right) thrusters for commands clipped to [-1, 1]."""
@@ -63,10 +58,9 @@ class Manoeuvring:
 
     def __init__(self, params: WamvDynamics, current_enu: tuple[float, float] = (0.0, 0.0)):
         self.params = params
-        xu, yv, nr = params.added_mass()
-        self._m11 = params.mass_kg + xu
-        self._m22 = params.mass_kg + yv
-        self._m33 = params.inertia_z_kgm2 + nr
+        self._m11 = params.mass_kg + params.added_mass_surge_kg
+        self._m22 = params.mass_kg + params.added_mass_sway_kg
+        self._m33 = params.inertia_z_kgm2 + params.added_inertia_yaw_kgm2
         self._current = np.asarray(current_enu, dtype=float)
 
     def derivative(self, state: np.ndarray, forces: np.ndarray) -> np.ndarray:

@@ -7,8 +7,11 @@ lie on one scan line (a deck overhead seen at a grazing angle, a far wall) the n
 turn about the line, and such points fake information along the surface: the ring pattern the
 sensor draws on it moves with the sensor, so they favour "no motion". Under charles_river's
 Charlestown Bridge (a flat deck, piers at 10 deg to the route) GICP reported the boat stopped,
-+-1 cm, while entering and leaving the deck. Along a direction the planes leave free, the motion
-prior is kept (matcher.remap)."""
++-1 cm, while entering and leaving the deck. Along a translation the planes leave free, the motion
+prior is kept (matcher.remap). Degenerate rotations keep GICP's estimate and only get the inflated
+covariance: they are judged against yaw's information, which the lever arms of distant points make
+large, so a roll measured to 0.1 deg by a canal's walls is flagged too, and a constant-rate prior
+in a chop is worse than that."""
 
 from __future__ import annotations
 
@@ -124,7 +127,7 @@ class Gicp(DeskewingMatcher):
             )
             fit = cur.plane_fit(ref, res.T_target_source, p)
             cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
-            T = keep_prior_along(res.T_target_source, prior, fit.H, degeneracy.directions)
+            T = keep_prior_along(res.T_target_source, prior, fit.H, [d for d in degeneracy.directions if d[:3].any()])
             new_twist = se3_log(T) / dt
             if ref.twist is None:  # the first reference was never de-skewed: use this estimate
                 ref = self._prepare(ref.cloud, new_twist)

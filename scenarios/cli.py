@@ -107,6 +107,7 @@ def run(
     seed: int = typer.Option(None, help="the scenario's seed"),
     workers: int = typer.Option(2, min=1, help="processes: 1 runs everything in one; 2 overlaps matching and simulation"),
     no_report: bool = typer.Option(False, "--no-report", help="skip report.md, report.html and plots/"),
+    fast: bool = typer.Option(False, "--fast", help="run the scenario's short [fast] variant (what `suite --fast` runs)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
     """Run a scenario: write its run directory, print a summary; exit 1 when an expectation fails."""
@@ -117,6 +118,7 @@ def run(
 
     with user_errors():
         spec = scenarios.load(scenario, set=set_, seed=seed)
+        spec = spec.fast_variant() if fast else spec
     try:
         with RunProgress(spec.name, console, quiet) as progress:
             result = scenarios.run(spec, out, workers=workers, report=not no_report, progress=progress.update)

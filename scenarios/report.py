@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from scenarios import plots
+from scenarios import plots, vessel_plot
 from scenarios.atomic import atomic_path
 
 NULL = "–"
@@ -112,6 +112,8 @@ def write(run_dir: Path, scenario=None) -> None:
     info = scenario_info(run_dir, scenario)
     series = plots.load(run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info))
     images = plots.write_all(series, run_dir / "plots")
+    vessel_node = metrics.get("vessel", {})
+    images |= vessel_plot.write(run_dir, float(vessel_node.get("clearance_threshold_m") or 0.0), vessel_node)
     ctx = Context(metrics, info, images, series.t0, plots.read_csv(run_dir / "windows.csv"))
     blocks = build(ctx)
     for name, text in (("report.md", to_markdown(blocks)), ("report.html", to_html(blocks, run_dir, title=f"riverbench: {name_of(ctx)}"))):
@@ -172,7 +174,8 @@ def get(path: str) -> Callable[[dict], float | None]:
 
 def build(ctx: Context) -> list:
     """Every block of the report, in reading order."""
-    return [*header(ctx), *failures(ctx), *expectations(ctx), *estimators(ctx), *figures(ctx, "map", "error", "yaw"),
+    return [*header(ctx), *failures(ctx), *expectations(ctx), *vessel(ctx), *figures(ctx, "vessel"), *estimators(ctx),
+            *figures(ctx, "map", "error", "yaw"),
             *gps(ctx), *figures(ctx, "hdop_error"), *windows(ctx), *matchers(ctx), *figures(ctx, "matchers")]
 
 
@@ -225,6 +228,28 @@ def expectations(ctx: Context) -> list:
              Cell("PASS" if o.get("pass") else "FAIL", css="pass" if o.get("pass") else "fail"),
              Cell(o.get("reason") or "", css="text")] for o in outcomes]
     return [Heading(2, "Expectations"), Table(["expectation", "value", "result", "reason"], rows)]
+
+
+def vessel(ctx: Context) -> list:
+    """How the vessel fared: steered on what, how it ended, its closest approach to a structure and its cross-track error."""
+    node = ctx.metrics.get("vessel")
+    if not node:
+        return []
+    control = ctx.info.get("control", {})
+    mode = control.get("mode", "open_loop")
+    steering = ("open loop: the vessel follows the route exactly" if mode == "open_loop"
+                else f"closed loop: the autopilot steers on {control.get('steer_on', '?')} (heading from the {control.get('heading', 'compass')})")
+    ended = {"completed": "reached the end of the stretch", "collision": f"hit {node.get('collision_part')} at t = {num(node.get('collision_t'), '.1f')} s",
+             "time_limit": "ran out of time before the end of the stretch", "interrupted": "stopped early"}.get(node.get("outcome"), str(node.get("outcome")))
+    cross = node.get("cross_track", {})
+    rows = [[Cell(str(node.get("outcome")), css="pass" if node.get("outcome") == "completed" else "fail"),
+             Cell(f"{metres(node.get('min_clearance_m'))} ({node.get('min_clearance_part') or NULL})"),
+             Cell(num(node.get("time_below_threshold_s"), ".1f")), Cell(metres(cross.get("mean"))), Cell(metres(cross.get("p95"))),
+             Cell(metres(cross.get("max"))), Cell(num(node.get("distance_m"), ".0f"))]]
+    note = (f"{steering}; it {ended}. Clearance: the distance from the hull to the nearest structure (overhead decks excluded); "
+            f"time within {num(node.get('clearance_threshold_m'), '.1f')} m of one; cross-track: the true offset from the route, metres.")
+    return [Heading(2, "Vessel"), Table(["outcome", "min clearance (nearest)", "s below threshold", "cross-track mean", "p95", "max",
+                                         "distance (m)"], rows, note)]
 
 
 ACCURACY_COLUMNS = [

@@ -44,7 +44,8 @@ def test_every_library_scenario_loads_with_a_description():
         ({"expect": ["estimators.ekf.ape.p95 <"]}, "metric op number"),
         ({"expect": ["estimators.kalman.ape.p95 < 3"]}, "no estimator with id 'kalman'"),
         ({"expect": ["weather.wind < 3"]}, "metrics start with"),
-        ({"control": {"mode": "closed_loop"}}, "control.mode"),
+        ({"control": {"mode": "autopilot"}}, "control.mode"),
+        ({"control": {"mode": "closed_loop", "steer_on": "nobody"}}, "control.steer_on"),
     ],
 )
 def test_bad_scenarios_fail_with_one_line_naming_key_and_file(data, needle):

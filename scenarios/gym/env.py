@@ -41,6 +41,8 @@ from scenarios.record import Recorder
 from scenarios.spec import Scenario
 from scenarios.stream import FixEvent, ScanEvent
 from scenarios.vessel_run import VesselRun
+from sim.autopilot import Autopilot
+from sim.compass import Compass, with_heading
 from sim.scan import POINT_DTYPE
 
 
@@ -61,6 +63,8 @@ class _Episode:
     run: VesselRun
     pool: MatcherPool
     feed: Feed
+    pilot: Autopilot
+    compass: Compass
     last_fix: object = None
     last_scan: object = None
     station_m: float = 0.0
@@ -112,7 +116,9 @@ class RiverNavEnv(gymnasium.Env):
         pool = MatcherPool([MatcherSetup(m.id, m.ref, m.params) for m in sc.matchers], workers=1)
         recorder = Recorder([m.id for m in sc.matchers], [e.id for e in sc.estimators], run.trajectory.mount)
         feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, open(os.devnull, "w"), lambda event: [], t_start)
-        self._episode = _Episode(run, pool, feed)
+        pilot = Autopilot(self.world.route, sc.control.dynamics, sc.vessel.speed_mps, sc.control.autopilot)
+        compass = Compass(sc.control.compass_sigma_deg, sc.control.gyro_sigma_dps, episode_seed)
+        self._episode = _Episode(run, pool, feed, pilot, compass)
         self._episode.station_m = run.loop.station_m
         self._start_station = self._episode.station_m
         return self._observe(), self._info()
@@ -141,6 +147,14 @@ class RiverNavEnv(gymnasium.Env):
         terminated = log.outcome in ("collision", "completed")
         truncated = log.outcome == "time_limit"
         return self._observe(), float(reward), terminated, truncated, self._info()
+
+    def baseline_action(self) -> np.ndarray:
+        """What the bench's LOS autopilot would command now, steering on the observed estimator's position and the
+        boat's compass (the reference policy; call once per step, it keeps its own filter state)."""
+        ep = self._require_episode()
+        t = ep.run.loop.t
+        yaw, rate = ep.compass.read(ep.run.trajectory, t, ep.run.t_start)
+        return np.array(ep.pilot.commands(t, with_heading(ep.feed.pose_of(self.estimator), yaw), rate), dtype=np.float32)
 
     def _observe(self) -> dict:
         ep = self._require_episode()

@@ -28,7 +28,9 @@ class TopView:
         self.part_of = np.concatenate(kinds) if kinds else np.zeros(0, int)
         self.lo, self.hi = self.triangles.min(axis=1), self.triangles.max(axis=1)
         palette, kinds = plt.get_cmap("tab20"), sorted({p.kind for p in solid})
-        self.colours = np.array([palette(kinds.index(p.kind) % 20) for p in solid]) if solid else np.zeros((0, 4))
+        # overhead parts (decks, girders: nothing below 2 m) are drawn faint so that what the hull can hit shows through
+        self.colours = np.array([(*palette(kinds.index(p.kind) % 20)[:3], 0.15 if p.mesh.bounds[0, 2] > 2.0 else 0.6)
+                                 for p in solid]) if solid else np.zeros((0, 4))
         self.route = world.route
         self.fig, self.ax = plt.subplots(figsize=(PIXELS / 100, PIXELS / 100), dpi=100)
 
@@ -41,7 +43,7 @@ class TopView:
         half = VIEW_M / 2
         centre = np.array([cx, cy])
         near = np.flatnonzero(np.all((self.hi > centre - half) & (self.lo < centre + half), axis=1))
-        ax.add_collection(PolyCollection(self.triangles[near], facecolors=self.colours[self.part_of[near]], edgecolors="none", alpha=0.55))
+        ax.add_collection(PolyCollection(self.triangles[near], facecolors=self.colours[self.part_of[near]], edgecolors="none"))
         ax.plot(self.route.xy[:, 0], self.route.xy[:, 1], "--", color="0.5", lw=0.8, label="route")
         track = np.array([(r[1], r[2]) for r in log.rows[-600:]])
         if len(track):

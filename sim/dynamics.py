@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+
 class WamvDynamics(BaseModel):
     """WAM-V 16 parameters. Mass, inertia, damping and thrusters: the VRX model (Bingham et al., "Toward
     Maritime Robotic Simulation in Gazebo", OCEANS 2019), identified on a real WAM-V. VRX sets the

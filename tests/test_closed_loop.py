@@ -8,12 +8,12 @@ import math
 
 import numpy as np
 import pytest
-from analytic_worlds import ORIGIN, water, wall_world
-from scenarios.closed_loop import ClosedLoop
-from scenarios.vessel_log import VesselWatch
+from analytic_worlds import ORIGIN, wall_world, water
 
 import scenarios
 import sim
+from scenarios.closed_loop import ClosedLoop
+from scenarios.vessel_log import VesselWatch
 from sim.autopilot import Autopilot
 from sim.clearance import HullClearance
 from sim.driven_trajectory import DrivenTrajectory
@@ -47,6 +47,7 @@ def test_an_overhead_deck_is_not_a_clearance_but_a_low_one_is():
     high = wall_world(distance_m=10.0)
     assert HullClearance(high, HULL).at(pose(50.0, 0.0, 0.0))[0].distance_m == pytest.approx(8.8, abs=1e-4)
     from analytic_worlds import box
+
     from worlds.materials import CONCRETE
     from worlds.world import Part
 
@@ -152,3 +153,24 @@ def test_a_closed_loop_scenario_run_writes_the_vessel_track_and_metrics(tmp_path
 def test_steering_on_an_unknown_estimator_is_a_one_line_error():
     with pytest.raises(ValueError, match="control.steer_on: no estimator with id 'kalman'"):
         scenarios.load("open_river", set=["control.mode=closed_loop", "control.steer_on=kalman"])
+
+
+def test_a_closed_loop_scenario_exports_the_driven_motion(tmp_path):
+    from scenarios.export.frames import open_stream
+
+    scenario = scenarios.load("open_river", set=["stretch={start_m=100.0, end_m=110.0}", "control.mode=closed_loop",
+                                                 "control.current_enu_mps=[0.0, 0.5]", "matchers=[]",
+                                                 "estimators=[{id = 'gps_only', kind = 'gps_only'}]", "control.steer_on=gps_only",
+                                                 "expect=[]"])
+    info, frames = open_stream(scenario)
+    frames = list(frames)
+    assert 40 <= len(frames) <= info.scans + 5 and all(len(f.scan.points) for f in frames)
+    stamps = [f.stamp for f in frames]
+    assert stamps == sorted(stamps)
+    # a 0.5 m/s current across the route: the exported motion is the driven one, not the planned route
+    import worlds
+
+    route = worlds.load("open_river").route
+    cross = route.project(np.array([f.base_pose[:2, 3] for f in frames]))[1]
+    assert np.abs(cross).max() > 0.05
+

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from sim.dynamics import Manoeuvring, WamvDynamics
 from sim.driven_trajectory import DrivenTrajectory
+from sim.dynamics import Manoeuvring, WamvDynamics
 from sim.trajectory import TrajectoryConfig
 
 VRX = WamvDynamics()

@@ -1,13 +1,14 @@
 """What every export writes: a scenario's simulated sensor stream, one LiDAR revolution at a time.
 
 A Frame is a revolution with the receiver outputs that fall inside it and the exact poses at its
-stamp. `frames(scenario)` simulates them lazily (no matcher, no estimator), so an export of the
+stamp. `frames(scenario)` simulates them lazily (no matcher, no estimator in open loop), so an export of the
 whole charles_river route streams in constant memory. The same seed gives the same frames as
 `riverbench run` of that scenario.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -16,8 +17,12 @@ import numpy as np
 
 import sim
 import worlds
+from scenarios.feed import Feed
+from scenarios.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.record import Recorder
 from scenarios.spec import Scenario
-from scenarios.stream import ScanEvent, events
+from scenarios.stream import ScanEvent
+from scenarios.vessel_run import VesselRun
 from sim.gnss_fix import GnssFix
 from sim.scan import Scan
 
@@ -56,24 +61,44 @@ class StreamInfo:
 
 
 def open_stream(scenario: Scenario) -> tuple[StreamInfo, Iterator[Frame]]:
-    """The stream's description and its frames (simulated lazily, as the iterator is consumed)."""
+    """The stream's description and its frames (simulated lazily, as the iterator is consumed).
+
+    A closed-loop scenario is driven as `riverbench run` drives it (its matchers and estimators run
+    in this process so the autopilot can steer on one); `scans` is then the planned count, an upper
+    bound when the vessel stops early (a collision).
+    """
     world = worlds.load(scenario.world, **scenario.world_params)
-    trajectory = sim.Trajectory(world, seed=scenario.seed, **scenario.vessel.model_dump(exclude={"seed"}))
+    planned = sim.Trajectory(world, seed=scenario.seed, **scenario.vessel.model_dump(exclude={"seed"}))
     lidar = sim.HDL32E(seed=scenario.seed, **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
                        rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
-    t_start, t_end = scenario.stretch.times(trajectory)
+    t_start, t_end = scenario.stretch.times(planned)
     n_scans = int(np.floor((t_end - t_start) / lidar.revolution_s + 1e-9))
+    run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
     info = StreamInfo(scenario.name, t_start, t_end, n_scans, scenario.lidar.rate_hz, scenario.gnss.rate_hz,
-                      tuple(world.origin), scenario.gnss.epoch_utc, trajectory.mount.copy(), tuple(scenario.gnss.antenna_offset_m))
-    return info, _frames(sim.Scene(world, sim.build_traffic(scenario.traffic, world, trajectory)), trajectory, lidar, receiver, t_start, t_end)
+                      tuple(world.origin), scenario.gnss.epoch_utc, run.trajectory.mount.copy(), tuple(scenario.gnss.antenna_offset_m))
+    return info, _frames(_events(scenario, run, t_start), run.trajectory)
 
 
-def _frames(world, trajectory, lidar, receiver, t_start: float, t_end: float) -> Iterator[Frame]:
+def _events(scenario: Scenario, run: VesselRun, t_start: float) -> Iterator:
+    """The run's events; in closed loop each also goes through the scenario's matchers and estimators, which steer it."""
+    if run.loop is None:
+        yield from run.events(None)
+        return
+    setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
+    recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], run.trajectory.mount)
+    with MatcherPool(setups, workers=1) as pool, open(os.devnull, "w") as nmea:
+        feed = Feed(scenario, pool, recorder, run.trajectory.pose, nmea, lambda event: [], t_start)
+        for event in run.events(feed):
+            feed.push(event)
+            yield event
+
+
+def _frames(events: Iterator, trajectory) -> Iterator[Frame]:
     """Group the time-ordered events into frames: each scan with the fixes up to the next scan."""
     current: Frame | None = None
     pending: list[GnssFix] = []  # fixes before the first scan go with it
-    for event in events(world, trajectory, lidar, receiver, t_start, t_end):
+    for event in events:
         if isinstance(event, ScanEvent):
             if current is not None:
                 yield current

@@ -86,8 +86,8 @@ def metrics(log: VesselLog, threshold_m: float, period_s: float) -> dict:
     i = int(np.argmin(clearance)) if len(finite) else -1
     return {
         "outcome": log.outcome,
-        "completed": log.outcome == "completed",
-        "collision": log.contact is not None,
+        "completed": int(log.outcome == "completed"),  # 0/1, so that expectations can read it
+        "collisions": int(log.contact is not None),
         "collision_t": log.contact.t if log.contact else float("nan"),
         "collision_part": log.contact.part if log.contact else "",
         "collision_kind": log.contact.kind if log.contact else "",

@@ -29,7 +29,7 @@ def write(run_dir: Path, threshold_m: float, outcome: dict) -> dict[str, str]:
     top, bottom = figure.subplots(2, 1, sharex=True)
     top.plot(t, clearance, color="tab:blue", lw=1.2)
     top.axhline(threshold_m, color="tab:red", ls="--", lw=0.8)
-    if outcome.get("collision"):
+    if outcome.get("collisions"):
         top.plot(outcome["collision_t"] - float(data["t"][0]), 0.0, "x", color="tab:red", ms=10, mew=2)
     top.set_ylabel("clearance (m)")
     top.set_ylim(0.0, min(float(np.nanmax(clearance)) * 1.05 + 0.5, 60.0))

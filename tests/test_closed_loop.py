@@ -142,7 +142,7 @@ def test_a_closed_loop_scenario_run_writes_the_vessel_track_and_metrics(tmp_path
                                                  "control.steer_on=ekf", "expect=['vessel.min_clearance_m > 100']"])
     result = scenarios.run(scenario, tmp_path / "run", workers=1, report=False)
     vessel = json.loads((tmp_path / "run" / "metrics.json").read_text())["vessel"]
-    assert vessel["outcome"] == "completed" and not vessel["collision"]
+    assert vessel["outcome"] == "completed" and vessel["completed"] == 1 and vessel["collisions"] == 0
     assert vessel["cross_track"]["max"] < 3.0 and vessel["distance_m"] == pytest.approx(30.0, abs=3.0)
     assert result.passed
     rows = (tmp_path / "run" / "vessel.csv").read_text().splitlines()

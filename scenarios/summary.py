@@ -27,13 +27,17 @@ def run_table(result) -> Group:
     for mid, x in m["matchers"].items():
         table.add_row(f"{mid}*", _num(x["ape"]["rmse"]), _num(x["ape"]["p95"]), _num(x["ape"]["max"]), "",
                       _num(x["rpe_100m"]["mean"]), _num(x["yaw"]["p95"], ".1f"), _num(x["success"], ".0%"), _num(x["hz"], ".0f"))
+    v = m.get("vessel", {})
+    vessel = (f"vessel: {v.get('outcome')}, min clearance {_num(v.get('min_clearance_m'))} m ({v.get('min_clearance_part') or '-'}), "
+              f"{_num(v.get('time_below_threshold_s'), '.1f')} s within {_num(v.get('clearance_threshold_m'), '.1f')} m, "
+              f"cross-track max {_num(v.get('cross_track', {}).get('max'))} m")
     expectations = Table(box=box.SIMPLE_HEAD, show_edge=False)
     for col, justify in (("", "left"), ("expectation", "left"), ("value", "right")):
         expectations.add_column(col, justify=justify)
     for outcome in m["expectations"]:
         mark = "[green]pass[/]" if outcome["pass"] else "[bold red]FAIL[/]"
         expectations.add_row(mark, outcome["expect"], _num(outcome["value"], ".3g"))
-    return Group(table, expectations) if m["expectations"] else Group(table)
+    return Group(table, vessel, expectations) if m["expectations"] else Group(table, vessel)
 
 
 def suite_table(cases) -> Table:

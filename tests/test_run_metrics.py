@@ -775,9 +775,13 @@ def test_compute_tree_is_json_safe():
     est[:10] = np.nan
     fixes, *_ = monitor_case()
     rec = run_record(truth, {"e": est}, {"m": matcher_track(truth)}, fixes=fixes)
-    tree = metrics.compute(rec, win.find(fixes, [], 0.2), {"scenario": "x", "seed": np.int64(1)})
+    from scenarios import vessel_log
+
+    tree = metrics.compute(rec, win.find(fixes, [], 0.2), {"scenario": "x", "seed": np.int64(1)},
+                           vessel_log.metrics(vessel_log.VesselLog(), 3.0, 0.1))
     text = json.dumps(metrics.json_safe(tree), allow_nan=False)
     back = json.loads(text)
+    assert back["vessel"]["outcome"] == "interrupted" and back["vessel"]["min_clearance_m"] is None
     assert back["estimators"]["e"]["available"] == pytest.approx(20 / 30)
     assert back["estimators"]["e"]["windows"]["nlos"]["max_error"] is None
 

@@ -8,6 +8,11 @@ defaults are replayed over all of it, so that each meets an outage with the stat
 With --margin M only the stretches around the outages are simulated (found by a pass of the receiver
 alone; each from M s before an outage to --after s past it, overlapping ones merged): about 3x
 cheaper on charles_river, and each estimator meets the outage after M s of the route, not all of it.
+Over a stretch every estimator starts cold (its own GPS alignment, as at the route's start), or with
+--start-from-truth at the true pose of the stretch's first scan (fusion's initial_pose, default
+initial_sigma): a cold start near canal_lock's buildings can align tens of degrees off, which is no
+part of an outage, while a true start begins well inside the GPS error the route would have left.
+The receiver-only pass's outage windows are kept in --out as JSON next to the recordings.
 Every stretch without a measured fix (GGA 0 or 6) of at least --min-outage s is an outage. Per
 outage and estimator the table gives the error when the outage begins (at its first scan), the max
 and mean horizontal error during it and in the --after s once fixes return, and the added error:
@@ -25,6 +30,8 @@ measure again once a world gains trees or moving boats; it is part of the record
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,11 +44,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from stream_record import (
+    Recording,
     add_recording_args,
     build,
+    code_digest,
     load_or_record,
     parse_settings,
     replay,
+    settings_tag,
 )
 
 import fusion
@@ -100,18 +110,41 @@ def stretches(args, seed: int, settings: dict) -> list[tuple[float, float | None
     the route from margin s before it to --after s past it, overlapping spans merged."""
     if args.margin is None:
         return [(args.t_start, args.t_end)]
-    stream = build(args.world, seed, settings)
-    duration = stream.trajectory.duration
-    stamps = stream.receiver.epochs(duration)
-    quality = np.array([stream.receiver.fix(stream.scene, stream.trajectory, t).quality for t in stamps])
+    duration, windows = receiver_outages(args, seed, settings)
     spans: list[tuple[float, float | None]] = []
-    for a, b in outage_windows(stamps, quality, args.min_outage):
+    for a, b in windows:
         lo, hi = max(0.0, a - args.margin), min(duration, b + args.after + 1.0)
         if spans and lo <= spans[-1][1]:
             spans[-1] = (spans[-1][0], hi)
         else:
             spans.append((lo, hi))
     return spans
+
+
+def receiver_outages(args, seed: int, settings: dict) -> tuple[float, list[tuple[float, float]]]:
+    """The route's duration and its outage windows from the receiver alone (cached in --out)."""
+    path = Path(args.out) / f"outages_{args.world}_s{seed}_min{args.min_outage:g}{settings_tag(settings)}_{code_digest()}.json"
+    if path.exists():
+        cached = json.loads(path.read_text())
+        return cached["duration"], [tuple(w) for w in cached["windows"]]
+    stream = build(args.world, seed, settings)
+    duration = stream.trajectory.duration
+    stamps = stream.receiver.epochs(duration)
+    quality = np.array([stream.receiver.fix(stream.scene, stream.trajectory, t).quality for t in stamps])
+    windows = outage_windows(stamps, quality, args.min_outage)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps({"duration": duration, "windows": windows}))
+    tmp.replace(path)
+    return duration, windows
+
+
+def start_pose(rec: Recording, from_truth: bool) -> dict:
+    """initial_pose (x, y, yaw deg) of the true pose at a stretch's first scan if asked for and not at the route's start; else {}."""
+    if not from_truth or rec.t_start <= 0.0:
+        return {}
+    x, y, _, yaw = next(item[3] for item in rec.items if item[0] == "scan")
+    return {"initial_pose": (float(x), float(y), math.degrees(yaw))}
 
 
 def run_seed(args, seed: int, settings: dict) -> list[tuple[tuple[float, float], OutageError]]:
@@ -122,7 +155,7 @@ def run_seed(args, seed: int, settings: dict) -> list[tuple[tuple[float, float],
 def run_stretch(args, seed: int, settings: dict, t_start: float, t_end: float | None) -> list[tuple[tuple[float, float], OutageError]]:
     """Record (or reuse) one stretch, replay the estimators, print its table; the target's errors per outage."""
     rec = load_or_record(Path(args.out), args.world, args.matcher, seed, t_start, t_end, settings)
-    run = replay(rec, {n: fusion.create(n, matcher=args.matcher) for n in NAMES})
+    run = replay(rec, {n: fusion.create(n, matcher=args.matcher, **start_pose(rec, args.start_from_truth)) for n in NAMES})
     quality = np.array([f.quality for f in run["fix"]])
     windows = outage_windows(run["fix_stamp"], quality, args.min_outage)
     print(f"\n{args.world} [{rec.t_start:.0f}, {rec.t_end:.0f}] s, matcher {args.matcher}, seed {seed}: {len(windows)} outage(s) >= {args.min_outage} s: "
@@ -177,6 +210,8 @@ def main() -> None:
     parser.add_argument("--t-end", type=float, default=None, help="record up to this time, s (default: the route's end)")
     parser.add_argument("--margin", type=float, default=None,
                         help="simulate only the stretches from this many s before each outage to --after s past it")
+    parser.add_argument("--start-from-truth", action="store_true",
+                        help="over a stretch, start every estimator at the true pose instead of its own GPS alignment")
     parser.add_argument("--min-outage", type=float, default=2.0)
     parser.add_argument("--before", type=float, default=40.0, help="plotted seconds before an outage")
     parser.add_argument("--after", type=float, default=20.0, help="seconds after an outage that count towards its error")

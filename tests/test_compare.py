@@ -360,3 +360,20 @@ def test_a_report_on_real_runs_names_every_component(real_runs):
         assert f"| {name} |" in text
     assert "Open water (open_river), lowest APE p95: " in text
     assert "None" not in text and "nan" not in text.lower()
+
+
+def test_closed_loop_runs_get_a_vessel_table_with_collisions_over_seeds(tmp_path):
+    for steer, clearances in (("ekf", (9.9, 9.5, 10.2)), ("gps_only", (0.0, 4.0, 0.0))):
+        for seed, clearance in zip(SEEDS, clearances):
+            run_dir = tmp_path / f"steer-{steer}-{seed}"
+            make_run(run_dir, "bridge", seed, 0.02)
+            toml = (run_dir / "scenario.toml").read_text().replace("\n[lidar]", f'\n[control]\nmode = "closed_loop"\nsteer_on = "{steer}"\n\n[lidar]')
+            (run_dir / "scenario.toml").write_text(toml)
+            data = json.loads((run_dir / "metrics.json").read_text())
+            data["run"]["scenario_hash"] += steer
+            data["vessel"] = {"collisions": int(clearance == 0.0), "min_clearance_m": clearance, "time_below_threshold_s": 0.0,
+                              "cross_track": {"max": 2.0 if steer == "ekf" else 9.0}}
+            (run_dir / "metrics.json").write_text(json.dumps(data))
+    text = (compare.write([tmp_path], tmp_path / "report").parent / "report.md").read_text().split("### Vessel")[1]
+    assert row(text, "bridge (control.steer_on=ekf)")[1:4] == ["ekf", "0 of 3", "9.90 (9.50–10.20)"]
+    assert row(text, "bridge (control.steer_on=gps_only)")[1:4] == ["gps_only", "**2 of 3**", "0.00 (0.00–4.00)"]

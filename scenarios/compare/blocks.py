@@ -20,6 +20,7 @@ from scenarios.compare.groups import (
     Configuration,
     Spread,
     failed,
+    spread_of,
 )
 from scenarios.compare.roc import ZOOM_FA, roc_figure, roc_path
 from scenarios.compare.runs import Unfinished, plural
@@ -65,6 +66,8 @@ def summary_section(confs: list[Configuration]) -> list:
 def summary_blocks(confs: list[Configuration]) -> list:
     """Estimators' APE p95 and matchers' success, aligned APE rmse and Hz: a row per component, a column per configuration."""
     blocks = [Heading(3, "Estimators: APE p95 (m)"), cross_table("estimator", confs, "estimators", APE_P95)]
+    if any(r.config.get("control", {}).get("mode") == "closed_loop" for c in confs for r in c.runs):
+        blocks += [Heading(3, "Vessel: clearance and collisions"), vessel_table(confs)]
     if any(c.matchers for c in confs):
         for title, column in (("Matchers: success", SUCCESS), ("Matchers: aligned APE rmse (m)", APE_ALIGNED), ("Matchers: speed (Hz)", HZ)):
             blocks += [Heading(3, title), cross_table("matcher", confs, "matchers", column)]
@@ -122,6 +125,28 @@ def cross_table(first: str, confs: list[Configuration], kind: str, base: Column)
             cells.append(report.Cell(texts[cid] + spread_text(spreads[cid], base.fmt) + failed, bold=texts[cid] == best))
         rows.append(cells)
     return Table(["scenario", *ids], rows, SPREAD_NOTE.replace("best median in its column", "best median in its row"))
+
+
+VESSEL_COLUMNS = (("min clearance (m)", "min_clearance_m"), ("s within threshold", "time_below_threshold_s"),
+                  ("cross-track max (m)", "cross_track.max"))
+
+
+def vessel_table(confs: list[Configuration]) -> Table:
+    """A row per configuration: what the vessel was steered on, its collisions over the runs, its closest approach and cross-track error."""
+    rows = []
+    for conf in confs:
+        nodes = [r.metrics.get("vessel", {}) for r in conf.runs]
+        control = conf.runs[0].config.get("control", {})
+        steering = control.get("steer_on", NULL) if control.get("mode") == "closed_loop" else "open loop"
+        hits = sum(bool(n.get("collisions")) for n in nodes)
+        cells = [Cell(conf.title, css="text"), Cell(str(steering)), Cell(f"{hits} of {len(nodes)}", css="fail" if hits else None)]
+        for _, path in VESSEL_COLUMNS:
+            spread = spread_of([report.get(path)(n) for n in nodes])
+            cells.append(Cell(NULL if spread is None else report.metres(spread.median) + spread_text(spread, report.metres)))
+        rows.append(cells)
+    note = ("Median over seeds (min–max). Clearance: the hull's distance to the nearest structure (0 after a collision); "
+            "time within the scenario's clearance threshold; cross-track: the true offset from the route.")
+    return Table(["scenario", "steered on", "collisions", *(title for title, _ in VESSEL_COLUMNS)], rows, note)
 
 
 def conf_section(conf: Configuration, images: dict[str, str]) -> list:

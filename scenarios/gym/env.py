@@ -23,6 +23,7 @@ limit (control.time_limit_factor x the stretch's planned time).
 
 from __future__ import annotations
 
+import io
 import math
 import os
 from dataclasses import dataclass
@@ -115,7 +116,7 @@ class RiverNavEnv(gymnasium.Env):
         run = VesselRun.build(sc, self.world, planned, lidar, receiver, t_start, t_end)
         pool = MatcherPool([MatcherSetup(m.id, m.ref, m.params) for m in sc.matchers], workers=1)
         recorder = Recorder([m.id for m in sc.matchers], [e.id for e in sc.estimators], run.trajectory.mount)
-        feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, open(os.devnull, "w"), lambda event: [], t_start)
+        feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, io.StringIO(), lambda event: [], t_start)
         pilot = Autopilot(self.world.route, sc.control.dynamics, sc.vessel.speed_mps, sc.control.autopilot)
         compass = Compass(sc.control.compass_sigma_deg, sc.control.gyro_sigma_dps, episode_seed)
         self._episode = _Episode(run, pool, feed, pilot, compass)
@@ -214,7 +215,6 @@ class RiverNavEnv(gymnasium.Env):
     def _close_episode(self) -> None:
         if self._episode is not None:
             self._episode.pool.__exit__(None, None, None)
-            self._episode.feed.nmea.close()
             self._episode = None
 
     def _require_episode(self) -> _Episode:

@@ -54,6 +54,13 @@ def preview(
         f"{1e3 * summary['seconds_per_revolution_median']:.1f}",
     )
     console.print(table)
+    stretches = Table(title="by stretch (route order)")
+    for column in ("stretch", "revolutions", "points/rev median", "p10", "p90", "in 6k-27k", "water share"):
+        stretches.add_column(column, justify="left" if column == "stretch" else "right")
+    for name, st in summary["by_stretch"].items():
+        stretches.add_row(name, str(st["revolutions"]), f"{st['median']:.0f}", f"{st['p10']:.0f}", f"{st['p90']:.0f}",
+                          f"{st['share_in_field_study_band']:.0%}", f"{st['water_return_share']:.2%}")
+    console.print(stretches)
     console.print(f"wrote {out}/preview.png, scan.pcd, summary.json")
 
 

@@ -24,6 +24,8 @@ def test_preview_writes_picture_cloud_and_summary(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["revolutions"] == 4
     assert summary["points_per_revolution"]["max"] == summary["densest_scan"]["points"] > 0
+    assert "by stretch" in result.output and sum(s["revolutions"] for s in summary["by_stretch"].values()) == 4
+    assert all(name in result.output for name in summary["by_stretch"])
     assert (out / "preview.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp leftovers
 

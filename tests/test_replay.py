@@ -105,9 +105,12 @@ def test_pcap_replay_within_its_quantisation(recorded):
         want, got = tum(run / f"{mid}.tum"), tum(out / f"{mid}.tum")
         np.testing.assert_array_equal(got[:, 0], want[:, 0])  # scans cut at the revolution start, stamped to the microsecond
         a, b = odometry(want), odometry(got)
-        assert np.abs(a[:, :3, 3] - b[:, :3, 3]).max() < 0.01  # measured 3.0 mm over 6 m (2 mm range, 0.01 deg azimuth)
+        assert np.abs(a[:, :2, 3] - b[:, :2, 3]).max() < 0.01  # measured 3.0 mm over 6 m (2 mm range, 0.01 deg azimuth)
+        # the canal's weakly observed vertical: where gicp finds a translation degenerate it keeps its motion prior, and the
+        # 2 mm quantisation flips that decision on a few scans (measured 6.3 cm over the 3 s)
+        assert np.abs(a[:, 2, 3] - b[:, 2, 3]).max() < 0.1
         angle = Rotation.from_matrix(np.linalg.inv(a[:, :3, :3]) @ b[:, :3, :3]).magnitude()
-        assert np.degrees(angle).max() < 0.05  # measured 0.02 deg
+        assert np.degrees(angle).max() < 0.1  # measured 0.06 deg (0.02 before gicp weighed its normals by planarity, which quantisation moves)
     want, got = tum(run / "ekf.tum"), tum(out / "ekf.tum")
     assert np.hypot(*(want[:, 1:3] - got[:, 1:3]).T).max() < 0.01  # odometry only in these 3 s (its monitor trusts no fix yet): 3.9 mm
     # GPRMC's time of 0.01 s puts each fix 1.1 ms before the scan it shares its stamp with in simulation, so gps_only

@@ -52,6 +52,7 @@ def canal():
     return drive_stretch("canal_lock", 120.0, 230.0)
 
 
+@pytest.mark.slow  # the fast suite's harvard_beam_bridge runs the same stack through this outage, with its expectations checked against gps_only
 def test_charles_river_bridge_outage(charles_bridge):
     a, b = outage(charles_bridge)
     assert 5.0 < b - a < 15.0
@@ -62,6 +63,7 @@ def test_charles_river_bridge_outage(charles_bridge):
     assert worst(charles_bridge, "ekf", a - 20.0, a) < 5.0  # GPS's own nominal level before it
 
 
+@pytest.mark.slow  # the fast suite's canal_multipath and steer_canal_multipath cover the NLOS canyon with the same stack
 def test_canal_lock_outage_between_nlos_stretches(canal):
     a, b = outage(canal)
     ekf = worst(canal, "ekf", a, b + 20.0)

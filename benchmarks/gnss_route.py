@@ -38,7 +38,7 @@ def statistics(r: dict[str, np.ndarray]) -> dict[str, float]:
     """Shares and error figures of one run (errors over epochs with a reported position)."""
     valid = r["quality"] != 0
     raw = r["num_sats"] > 0
-    herr, hdop = r["herr"][valid], r["hdop"][valid]
+    herr = r["herr"][valid]
     with_hdop = valid & raw
     big = r["herr"] > 10.0
     return {

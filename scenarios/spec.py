@@ -25,7 +25,7 @@ from sim.dynamics import WamvDynamics
 from sim.gnss import GnssConfig
 from sim.lidar import HDL32EConfig
 from sim.traffic import TrafficConfig
-from sim.trajectory import TrajectoryConfig
+from sim.trajectory import TrajectoryConfig, mount_matrix
 
 ID_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*$"
 SEEDED_SECTIONS = ("vessel", "lidar")
@@ -332,15 +332,8 @@ def _drop_none(value):
 
 
 def _mount_matrix(vessel: TrajectoryConfig) -> list[list[float]]:
-    from scipy.spatial.transform import Rotation
-
-    m = [[0.0] * 4 for _ in range(4)]
-    rot = Rotation.from_euler("xyz", vessel.mount_rpy_deg, degrees=True).as_matrix()
-    for i in range(3):
-        m[i][:3] = [float(x) for x in rot[i]]
-        m[i][3] = float(vessel.mount_xyz[i])
-    m[3][3] = 1.0
-    return m
+    """base_link<-lidar as nested lists (what an estimator's `mount` parameter takes)."""
+    return mount_matrix(vessel).tolist()
 
 
 def _unique(what: str, ids: list[str]) -> None:

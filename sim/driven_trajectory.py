@@ -9,15 +9,11 @@ A bounded history is kept (memory stays flat in run length).
 
 from __future__ import annotations
 
-from functools import cached_property
-
 import numpy as np
-import trimesh
 
 from sim.dynamics import Manoeuvring, WamvDynamics
 from sim.rng import stream
-from sim.trajectory import TrajectoryConfig, mount_matrix, yaw_pitch_roll_matrices
-from sim.vessel import hull_mesh
+from sim.trajectory import TrajectoryConfig, VesselPoses, mount_matrix, wave_poses
 from sim.waves import WaveMotion
 
 STEP_S = 0.01
@@ -26,7 +22,7 @@ HISTORY_S = 120.0
 """How far back poses stay available (a chase boat's lag, a report's look back)."""
 
 
-class DrivenTrajectory:
+class DrivenTrajectory(VesselPoses):
     """World<-base_link poses of a vessel that moves as `drive(commands, until)` tells it.
 
     start: (x, y, yaw, u) at time t0 (ENU metres, rad from east, surge m/s). `config` gives the
@@ -56,11 +52,6 @@ class DrivenTrajectory:
         """(x, y, yaw, u, v, r) now, at `duration`."""
         return self._state[-1].copy()
 
-    @cached_property
-    def hull(self) -> trimesh.Trimesh:
-        """The vessel body in base_link, up to the LiDAR mount (what the sensor cannot see through)."""
-        return hull_mesh(self.config.hull, mast_top_m=self.config.mount_xyz[2] - 0.1)
-
     def drive(self, commands: tuple[float, float], until: float) -> None:
         """Hold the (left, right) thruster commands in [-1, 1] from now until time `until`."""
         cmd = np.asarray(commands, dtype=float)
@@ -89,27 +80,8 @@ class DrivenTrajectory:
         if ts.min() < self._t[0] - 1e-9 or ts.max() > self._t[-1] + 1e-9:
             raise ValueError(f"driven trajectory: time {ts.min():.3f}..{ts.max():.3f} s outside the driven "
                              f"{self._t[0]:.3f}..{self._t[-1]:.3f} s")
-        x = np.interp(ts, self._t, self._state[:, 0])
-        y = np.interp(ts, self._t, self._state[:, 1])
-        yaw = np.interp(ts, self._t, self._state[:, 2])
-        heave, roll, pitch = self.waves.at(ts)
-        out = np.zeros((len(ts), 4, 4))
-        out[:, :3, :3] = yaw_pitch_roll_matrices(yaw, pitch, roll)
-        out[:, 0, 3], out[:, 1, 3], out[:, 2, 3] = x, y, heave
-        out[:, 3, 3] = 1.0
-        return out
-
-    def pose(self, t: float) -> np.ndarray:
-        """4x4 world<-base_link at time t."""
-        return self.poses(np.array([t]))[0]
-
-    def lidar_poses(self, ts: np.ndarray) -> np.ndarray:
-        """(N, 4, 4) world<-lidar at times ts."""
-        return self.poses(ts) @ self.mount
-
-    def lidar_pose(self, t: float) -> np.ndarray:
-        """4x4 world<-lidar at time t."""
-        return self.lidar_poses(np.array([t]))[0]
+        xy = np.stack([np.interp(ts, self._t, self._state[:, k]) for k in (0, 1)], axis=-1)
+        return wave_poses(ts, xy, np.interp(ts, self._t, self._state[:, 2]), self.waves)
 
     def speed(self, t: float) -> float:
         """Speed over ground (m/s) at the driven time nearest t (body velocities are over ground)."""

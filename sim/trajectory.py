@@ -40,7 +40,43 @@ class TrajectoryConfig(BaseModel):
     seed: int = Field(0, description="seed of the speed-profile phase and the wave components")
 
 
-class Trajectory:
+class VesselPoses:
+    """What the sensors ask of a vessel's motion, built on the subclass's `poses(ts)`, `config` (TrajectoryConfig)
+    and `mount`: single poses, the LiDAR's poses and the hull that occludes it."""
+
+    config: TrajectoryConfig
+    mount: np.ndarray
+
+    @cached_property
+    def hull(self) -> trimesh.Trimesh:
+        """The vessel body in base_link, up to the LiDAR mount (what the sensor cannot see through)."""
+        return hull_mesh(self.config.hull, mast_top_m=self.config.mount_xyz[2] - 0.1)
+
+    def pose(self, t: float) -> np.ndarray:
+        """4x4 world<-base_link at time t."""
+        return self.poses(np.array([t]))[0]
+
+    def lidar_poses(self, ts: np.ndarray) -> np.ndarray:
+        """(N, 4, 4) world<-lidar at times ts."""
+        return self.poses(ts) @ self.mount
+
+    def lidar_pose(self, t: float) -> np.ndarray:
+        """4x4 world<-lidar at time t."""
+        return self.lidar_poses(np.array([t]))[0]
+
+
+def wave_poses(ts: np.ndarray, xy: np.ndarray, yaw: np.ndarray, waves: WaveMotion) -> np.ndarray:
+    """(N, 4, 4) world<-base_link from the plane motion (xy (N, 2), yaw) and the waves' heave, roll and pitch at ts."""
+    heave, roll, pitch = waves.at(ts)
+    out = np.zeros((len(ts), 4, 4))
+    out[:, :3, :3] = yaw_pitch_roll_matrices(yaw, pitch, roll)
+    out[:, :2, 3] = xy
+    out[:, 2, 3] = heave
+    out[:, 3, 3] = 1.0
+    return out
+
+
+class Trajectory(VesselPoses):
     """The vessel's true motion: `pose(t)` is world<-base_link, exact at any t in [0, duration]."""
 
     def __init__(self, world: World, speed_mps: float = 2.0, sea_state: int = 0, start_m: float = 0.0, **more):
@@ -60,11 +96,6 @@ class Trajectory:
         )
         self.duration = float(brentq(lambda t: self.station(t) - self.end_m, 0.0, 10 * self.end_m / cfg.speed_mps))
         self.mount = mount_matrix(cfg)
-
-    @cached_property
-    def hull(self) -> trimesh.Trimesh:
-        """The vessel body in base_link, up to the LiDAR mount (what the sensor cannot see through)."""
-        return hull_mesh(self.config.hull, mast_top_m=self.config.mount_xyz[2] - 0.1)
 
     def station(self, t: float | np.ndarray) -> np.ndarray:
         """Route arc length (m) reached at time t: the integral of the oscillating speed profile."""
@@ -87,25 +118,7 @@ class Trajectory:
         xy, yaw = self.route.at(self.station(ts))
         if self.config.lateral_offset_m:
             xy = xy + self.config.lateral_offset_m * np.stack([-np.sin(yaw), np.cos(yaw)], axis=-1)
-        heave, roll, pitch = self.waves.at(ts)
-        out = np.zeros((len(ts), 4, 4))
-        out[:, :3, :3] = yaw_pitch_roll_matrices(yaw, pitch, roll)
-        out[:, :2, 3] = xy
-        out[:, 2, 3] = heave
-        out[:, 3, 3] = 1.0
-        return out
-
-    def pose(self, t: float) -> np.ndarray:
-        """4x4 world<-base_link at time t."""
-        return self.poses(np.array([t]))[0]
-
-    def lidar_poses(self, ts: np.ndarray) -> np.ndarray:
-        """(N, 4, 4) world<-lidar at times ts."""
-        return self.poses(ts) @ self.mount
-
-    def lidar_pose(self, t: float) -> np.ndarray:
-        """4x4 world<-lidar at time t."""
-        return self.lidar_poses(np.array([t]))[0]
+        return wave_poses(ts, xy, yaw, self.waves)
 
     def _check_times(self, ts: np.ndarray) -> None:
         if not np.isfinite(ts).all():

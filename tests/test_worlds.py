@@ -447,11 +447,30 @@ def test_canal_invariants_over_parameters(width, wall, deck, gate, chamber_frac)
             assert kind[0] in BRIDGE_KINDS and t[0] + 0.2 == pytest.approx(deck, abs=2e-3)
 
 
+@pytest.mark.parametrize("kind, spacing_key, depth_key", [("beam", "girder_spacing_m", "girder_depth_m"), ("arch", "rib_spacing_m", "rib_depth_m")])
+def test_girders_and_ribs_face_along_the_route(kind, spacing_key, depth_key):
+    """Under a girder or rib bridge crossing square, a ray along the route at mid-depth from midway
+    between two members meets the next one's side at half the spacing less half its width (the
+    surfaces that let a scan matcher measure motion along the route under a deck)."""
+    spacing, depth, clearance = 4.0, 1.5, 6.0
+    spec = dict(name="b", type=kind, station_m=800.0, deck_height_m=clearance, deck_width_m=24.0, pier_spacing_m=40.0,
+                **{spacing_key: spacing, depth_key: depth})
+    world = worlds.load("open_river", bridges=[spec], use_cache=False)
+    xy, heading = world.route.at(800.0)
+    ahead = np.array([np.cos(heading), np.sin(heading)])
+    start = np.r_[xy + ahead * spacing / 2, clearance + depth / 2]
+    t, kind_hit = cast(world, [start, start], [np.r_[ahead, 0.0], np.r_[-ahead, 0.0]])
+    half_width = 0.015 if kind == "beam" else 0.4  # a girder's web, a rib
+    assert set(kind_hit) == {"girder" if kind == "beam" else "arch"}
+    assert t == pytest.approx(spacing / 2 - half_width, abs=0.02)
+
+
 @settings(max_examples=8, deadline=None)
 @given(kind=st.sampled_from(["beam", "arch", "truss"]), station=st.floats(300.0, 1700.0), angle=st.floats(-40.0, 40.0),
-       deck=st.floats(3.0, 15.0), width=st.floats(4.0, 40.0), spacing=st.floats(12.0, 120.0), pier=st.floats(0.5, 4.0))
-def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck, width, spacing, pier):
-    """The deck is at its clearance over the route; piers keep the clearance that spacing, pier width
+       deck=st.floats(3.0, 15.0), width=st.floats(4.0, 40.0), spacing=st.floats(12.0, 120.0), pier=st.floats(0.5, 4.0),
+       members=st.sampled_from([0.0, 2.5, 6.0]))
+def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck, width, spacing, pier, members):
+    """The deck (on a slab, a vault, girders or ribs) is at its clearance over the route; piers keep the clearance that spacing, pier width
     and the crossing angle leave (mid-span at the station, slanting across a wide deck)."""
     # gap along the bridge axis at the pier's end (deck width + 1 m each side), times cos(angle) for
     # the perpendicular distance from a route crossing at that angle; 15 cm for the route's gentle
@@ -461,6 +480,7 @@ def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck,
     assume(clearance > 1.2)
     spec = dict(name="b", type=kind, station_m=station, crossing_angle_deg=angle, deck_height_m=deck,
                 deck_width_m=width, pier_spacing_m=spacing, pier_width_m=pier)
+    spec |= {"beam": {"girder_spacing_m": members}, "arch": {"rib_spacing_m": members}}.get(kind, {})
     world = worlds.load("open_river", bridges=[spec], use_cache=False)
     (placed,) = world.params["structures"]
     xy, _ = world.route.at(station)

@@ -1,12 +1,17 @@
-"""Bridges across the channel: a beam bridge on piers, a masonry arch bridge, a steel girder/truss bridge.
+"""Bridges across the channel: a beam bridge on piers, a masonry or steel-rib arch bridge, a steel girder/truss bridge.
 
 A bridge sits at route station `station_m`; its axis crosses the route at `crossing_angle_deg`
 from the route's normal (0 = square crossing). Local frame: origin at the route point, u along
 the bridge axis (positive toward the route's left bank), v across the deck, z up. Piers stand at
 u = (k + 1/2) * pier_spacing_m, so the route always passes mid-span between two piers.
 `deck_height_m` is the clearance: the height above the water of the lowest structure over the
-route (deck underside for beam bridges, the arch crown's intrados for arch bridges, the bottom
-flange of the steel girders for girder/truss bridges).
+route (deck underside for slab beam bridges, the girders' bottom flanges for girder beam and truss
+bridges, the crown's intrados of the vault or of the ribs for arch bridges).
+
+What is under a deck decides what a LiDAR can register there. A flat slab on piers parallel to the
+route, or a masonry vault, is a tunnel: nothing in it fixes the motion along the route. Spans of
+20-50 m, as on the Charles, are carried by girders or arch ribs across the route instead, whose
+webs face along it (girder_spacing_m, rib_spacing_m).
 """
 
 from __future__ import annotations
@@ -31,7 +36,8 @@ class BridgeSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     name: str = Field(..., min_length=1, description="unique name, used in part names and world.params['structures']")
-    type: BridgeType = Field(..., description="beam (deck on piers), arch (masonry arches on piers) or truss (steel girders, truss and pipes)")
+    type: BridgeType = Field(..., description="beam (deck on piers, on girders if girder_spacing_m > 0), arch (masonry vaults, or steel ribs "
+                             "if rib_spacing_m > 0, on piers) or truss (steel girders, truss and pipes)")
     station_m: float = Field(..., description="route arc length where the bridge axis crosses the route, m")
     crossing_angle_deg: float = Field(0.0, ge=-60.0, le=60.0, description="angle between the bridge axis and the route's normal, deg (0 = square)")
     deck_height_m: float = Field(6.0, gt=0.5, le=60.0, description="clearance above the water of the lowest structure over the route, m")
@@ -45,8 +51,13 @@ class BridgeSpec(BaseModel):
     parapet_m: float = Field(1.1, ge=0.0, le=5.0, description="parapet / railing height on both deck edges, m")
     arch_spring_m: float = Field(1.5, ge=0.0, le=30.0, description="arch: height above the water where arches spring from the piers, m")
     truss_height_m: float = Field(5.0, ge=0.0, le=40.0, description="truss: height of the through truss above the deck, m (0 = girders only)")
-    girder_depth_m: float = Field(1.6, gt=0.2, le=10.0, description="truss: depth of the steel girders under the road deck, m")
-    panel_m: float = Field(6.0, gt=1.0, le=50.0, description="truss: panel length of the truss and bracing, m")
+    girder_depth_m: float = Field(1.6, gt=0.2, le=10.0, description="beam with girders, truss: depth of the steel girders under the road deck, m")
+    girder_spacing_m: float = Field(0.0, ge=0.0, le=10.0, description="beam: spacing across the deck of steel I-girders along the bridge axis under "
+                                    "the slab, one under the route's centreline, m (0 = a flat slab soffit)")
+    rib_spacing_m: float = Field(0.0, ge=0.0, le=20.0, description="arch: spacing across the deck of steel arch ribs carrying the deck on spandrel "
+                                 "columns, one under the route's centreline, m (0 = a masonry vault with spandrel walls)")
+    rib_depth_m: float = Field(1.5, gt=0.2, le=10.0, description="arch with ribs: depth of each rib, m")
+    panel_m: float = Field(6.0, gt=1.0, le=50.0, description="truss: panel length of the truss and bracing; arch with ribs: spacing of the spandrel columns, m")
 
     @model_validator(mode="after")
     def _piers_fit(self) -> "BridgeSpec":
@@ -133,17 +144,41 @@ def _abutments(spec: BridgeSpec, origin, u, v, ext: tuple[float, float, float, f
     return out
 
 
+def _across(width: float, spacing: float, margin: float) -> np.ndarray:
+    """Offsets across a deck of `width`, `spacing` apart with one at 0, at least `margin` inside the edges."""
+    k = np.floor((width / 2 - margin) / spacing)
+    return np.arange(-k, k + 1) * spacing
+
+
+def _i_girders(origin, u, v, u0: float, u1: float, across: np.ndarray, z_bottom: float, depth: float) -> list[trimesh.Trimesh]:
+    """Steel I-girders along the bridge axis from u0 to u1 at each offset `across`: web and both flanges."""
+    mid, length = 0.5 * (u0 + u1), u1 - u0
+    out = []
+    for gv in across:
+        out.append(_local_box(origin, u, v, (mid, gv, z_bottom + 0.02), (length, 0.6, 0.04)))
+        out.append(_local_box(origin, u, v, (mid, gv, z_bottom + depth / 2), (length, 0.03, depth - 0.08)))
+        out.append(_local_box(origin, u, v, (mid, gv, z_bottom + depth - 0.02), (length, 0.6, 0.04)))
+    return out
+
+
 def build_beam(spec: BridgeSpec, route: Route) -> list[Part]:
-    """Concrete slab deck on rectangular piers."""
+    """Concrete slab deck on rectangular piers, on steel I-girders if girder_spacing_m > 0."""
     origin, u, v = spec.frame(route)
     ext = spec.extent(route)
     h = spec.deck_height_m
     concrete = MATERIALS["concrete"]
-    parts = [Part(f"{spec.name}_deck", "bridge_deck", concrete, merge(_deck(spec, origin, u, v, ext[0], ext[1], h)))]
+    parts = []
+    slab = h
+    if spec.girder_spacing_m > 0:
+        across = _across(spec.deck_width_m, spec.girder_spacing_m, 0.5)
+        girders = _i_girders(origin, u, v, ext[0], ext[1], across, h, spec.girder_depth_m)
+        parts.append(Part(f"{spec.name}_girders", "girder", MATERIALS["steel"], merge(girders)))
+        slab = h + spec.girder_depth_m
+    parts.append(Part(f"{spec.name}_deck", "bridge_deck", concrete, merge(_deck(spec, origin, u, v, ext[0], ext[1], slab))))
     piers = _piers(spec, route, origin, u, v, h)
     if piers:
         parts.append(Part(f"{spec.name}_piers", "pier", concrete, merge(piers)))
-    abut = _abutments(spec, origin, u, v, ext, h)
+    abut = _abutments(spec, origin, u, v, ext, slab)
     if abut:
         parts.append(Part(f"{spec.name}_abutments", "pier", concrete, merge(abut)))
     return parts
@@ -163,20 +198,67 @@ def _arch_span(origin, u, v, a: float, b: float, spring: float, crown: float, to
     return [vault, *sides]
 
 
+def _arch_curve(a: float, b: float, spring: float, crown: float, n: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """(u, z) of an elliptical intrados between pier faces a < b, from `spring` to `crown` at mid-span."""
+    uc, half = 0.5 * (a + b), 0.5 * (b - a)
+    uu = uc + half * np.cos(np.linspace(np.pi, 0.0, n + 1))
+    zz = spring + (crown - spring) * np.sqrt(np.clip(1.0 - ((uu - uc) / half) ** 2, 0.0, 1.0))
+    uu[n // 2], zz[n // 2] = uc, crown
+    return uu, zz
+
+
+def _rib_span(origin, u, v, a: float, b: float, spring: float, crown: float, depth: float, across: np.ndarray,
+              column_every: float, deck_bottom: float) -> list[trimesh.Trimesh]:
+    """Steel arch ribs 0.8 m wide between pier faces a < b at each offset `across` (their sides face
+    along the route), and 0.5 m square spandrel columns from each rib up to the deck every column_every m."""
+    uu, zz = _arch_curve(a, b, spring, crown)
+    curve = lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(len(uu), vv), z])  # noqa: E731
+    out = []
+    for c in across:
+        lo, hi = c - 0.4, c + 0.4
+        out.append(orient(strip(np.stack([curve(lo, zz), curve(hi, zz)])), -UP))
+        out.append(orient(strip(np.stack([curve(lo, zz + depth), curve(hi, zz + depth)])), UP))
+        for side, vv in ((-1, lo), (1, hi)):
+            out.append(orient(strip(np.stack([curve(vv, zz), curve(vv, zz + depth)])), np.r_[side * v, 0.0]))
+        k = np.floor((0.5 * (b - a) - 0.5) / column_every)
+        for cu in 0.5 * (a + b) + np.arange(-k, k + 1) * column_every:
+            z0 = float(np.interp(cu, uu, zz)) + depth
+            if deck_bottom - z0 > 0.5:
+                out.append(_local_box(origin, u, v, (cu, c, 0.5 * (z0 + deck_bottom)), (0.5, 0.5, deck_bottom - z0)))
+    return out
+
+
+def _arch_span(origin, u, v, a: float, b: float, spring: float, crown: float, top: float, half_w: float) -> list[trimesh.Trimesh]:
+    """Elliptical masonry vault between pier faces a < b (intrados from `spring` to `crown`, facing down) and
+    its spandrel walls up to `top` (facing out of the bridge)."""
+    uu, zz = _arch_curve(a, b, spring, crown)
+    curve = lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(len(uu), vv), z])  # noqa: E731
+    vault = orient(strip(np.stack([curve(-half_w, zz), curve(half_w, zz)])), -UP)
+    sides = [orient(strip(np.stack([curve(s * half_w, zz), curve(s * half_w, np.full(len(uu), top))])), np.r_[s * v, 0.0])
+             for s in (-1, 1)]
+    return [vault, *sides]
+
+
 def build_arch(spec: BridgeSpec, route: Route) -> list[Part]:
-    """Granite piers carrying elliptical arches with spandrel walls, road deck on top."""
+    """Piers carrying elliptical masonry vaults with spandrel walls (granite), or open-spandrel steel
+    ribs (rib_spacing_m > 0), road deck on top."""
     origin, u, v = spec.frame(route)
     ext = spec.extent(route)
     crown, spring = spec.deck_height_m, min(spec.arch_spring_m, spec.deck_height_m - 0.5)
-    top = crown + 0.8
+    ribbed = spec.rib_spacing_m > 0
+    top = crown + (spec.rib_depth_m + 0.3 if ribbed else 0.8)
     granite = MATERIALS["granite"]
     piers_u = spec.piers_u(route)
     faces = np.r_[ext[2], np.ravel(np.c_[piers_u - spec.pier_width_m / 2, piers_u + spec.pier_width_m / 2]), ext[3]]
     arches = []
     for a, b in zip(faces[0::2], faces[1::2]):
-        arches += _arch_span(origin, u, v, a, b, spring, crown, top, spec.deck_width_m / 2)
+        if ribbed:
+            arches += _rib_span(origin, u, v, a, b, spring, crown, spec.rib_depth_m, _across(spec.deck_width_m, spec.rib_spacing_m, 0.5),
+                                spec.panel_m, top)
+        else:
+            arches += _arch_span(origin, u, v, a, b, spring, crown, top, spec.deck_width_m / 2)
     parts = [
-        Part(f"{spec.name}_arches", "arch", granite, merge(arches)),
+        Part(f"{spec.name}_arches", "arch", MATERIALS["steel"] if ribbed else granite, merge(arches)),
         Part(f"{spec.name}_deck", "bridge_deck", MATERIALS["concrete"], merge(_deck(spec, origin, u, v, ext[0], ext[1], top))),
     ]
     piers = _piers(spec, route, origin, u, v, top)
@@ -193,12 +275,8 @@ def build_truss(spec: BridgeSpec, route: Route) -> list[Part]:
     h, d, w = spec.deck_height_m, spec.girder_depth_m, spec.deck_width_m
     length, mid = u1 - u0, 0.5 * (u0 + u1)
     deck_bottom = h + d
-    steel = []
     girders_v = np.linspace(-w / 2 + 0.6, w / 2 - 0.6, 5)
-    for gv in girders_v:
-        steel.append(_local_box(origin, u, v, (mid, gv, h + 0.02), (length, 0.6, 0.04)))
-        steel.append(_local_box(origin, u, v, (mid, gv, h + d / 2), (length, 0.03, d - 0.08)))
-        steel.append(_local_box(origin, u, v, (mid, gv, h + d - 0.02), (length, 0.6, 0.04)))
+    steel = _i_girders(origin, u, v, u0, u1, girders_v, h, d)
     panels = np.arange(u0, u1 + 1e-9, spec.panel_m)
     for k, pu in enumerate(panels[:-1]):
         nu = panels[k + 1]

@@ -72,13 +72,14 @@ def _charles_bridges(route: Route) -> list[BridgeSpec]:
         BridgeSpec(name="bu_bridge", type="truss", station_m=at((0.0, 0.0)), crossing_angle_deg=12.0, deck_height_m=8.0,
                    deck_width_m=20.0, pier_spacing_m=60.0, pier_width_m=3.0, truss_height_m=6.0),
         BridgeSpec(name="harvard_bridge", type="beam", station_m=at((1570.0, 200.0)), crossing_angle_deg=-5.0, deck_height_m=7.0,
-                   deck_width_m=21.0, pier_spacing_m=27.5, pier_width_m=2.5),
+                   deck_width_m=21.0, pier_spacing_m=27.5, pier_width_m=2.5, girder_spacing_m=3.0, girder_depth_m=1.5),
         BridgeSpec(name="longfellow_bridge", type="arch", station_m=at((2900.0, 830.0)), deck_height_m=8.5,
-                   deck_width_m=32.0, pier_spacing_m=52.0, pier_width_m=6.0, arch_spring_m=2.5, parapet_m=1.3),
+                   deck_width_m=32.0, pier_spacing_m=52.0, pier_width_m=6.0, arch_spring_m=2.5, parapet_m=1.3,
+                   rib_spacing_m=4.5, rib_depth_m=1.5, panel_m=4.0),
         BridgeSpec(name="museum_dam_bridge", type="beam", station_m=at((3260.0, 1540.0)), deck_height_m=5.0,
-                   deck_width_m=30.0, pier_spacing_m=22.0, pier_width_m=2.0),
+                   deck_width_m=30.0, pier_spacing_m=22.0, pier_width_m=2.0, girder_spacing_m=3.0, girder_depth_m=1.2),
         BridgeSpec(name="charlestown_bridge", type="beam", station_m=at((4100.0, 1780.0)), crossing_angle_deg=10.0,
-                   deck_height_m=6.0, deck_width_m=30.0, pier_spacing_m=40.0, pier_width_m=3.0),
+                   deck_height_m=6.0, deck_width_m=30.0, pier_spacing_m=40.0, pier_width_m=3.0, girder_spacing_m=3.0, girder_depth_m=2.0),
     ]
 
 

@@ -33,10 +33,9 @@ class PfParams(MotionModelParams):
     """PF parameters on top of the shared ones (defaults in brackets).
 
     n_particles [500]; gps_dof: Student-t degrees of freedom of the GPS likelihood [3];
-    motion and GPS white-noise parameters: see MotionModelParams, except accel_sigma and
-    lateral_accel_sigma [0.3, 0.2]: particles need the wider process noise to stay diverse (with the
-    ekf's 0.1 and 0.05 the pf's median error over charles_river's first 700 s rose from 3.1 to
-    4.4 m); gps_correlation_s [0: fixes are independent Student-t draws; with a per-particle
+    motion and GPS white-noise parameters: see MotionModelParams, except lateral_accel_sigma [0.2]:
+    particles need the wider process noise to stay diverse (with the ekf's earlier 0.1 and 0.05 the
+    pf's median error over charles_river's first 700 s rose from 3.1 to 4.4 m); gps_correlation_s [0: fixes are independent Student-t draws; with a per-particle
     Gauss-Markov bias each particle absorbs its own offset into its bias and the cloud drifts off,
     p95 8.9 m against 4.0 m over charles_river's first 700 s]; resample_ess: resample when the effective sample size falls below this share
     of n_particles [0.5]; resampling is regularised (Liu-West shrinkage and a kernel shaped like the
@@ -45,7 +44,6 @@ class PfParams(MotionModelParams):
     """
 
     monitor: str = "none"
-    accel_sigma: float = Field(0.3, gt=0)
     lateral_accel_sigma: float = Field(0.2, gt=0)
     gps_correlation_s: float = Field(0.0, ge=0)
     n_particles: int = Field(500, ge=10)

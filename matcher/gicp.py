@@ -11,7 +11,9 @@ Charlestown Bridge (a flat deck, piers at 10 deg to the route) GICP reported the
 prior is kept (matcher.remap). Degenerate rotations keep GICP's estimate and only get the inflated
 covariance: they are judged against yaw's information, which the lever arms of distant points make
 large, so a roll measured to 0.1 deg by a canal's walls is flagged too, and a constant-rate prior
-in a chop is worse than that."""
+in a chop is worse than that. Returns from a boat keeping station with the sensor (a chase boat)
+are dropped before registering (matcher.comoving): taken as static, they pulled the motion towards
+zero, to a quarter of the true one under the BU Bridge."""
 
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from pydantic import Field
 
 from matcher.base import DeskewingMatcher, MatcherParams
 from matcher.cloud import Cloud
+from matcher.comoving import moving_with_sensor
 from matcher.covariance import (
     DegeneracyParams,
     FloorParams,
@@ -58,6 +61,7 @@ class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
         0.1, gt=0.0, le=1.0,
         description="a reference point less planar than this (a single scan line) counts in the covariance in proportion (default 0.1)",
     )
+    drop_comoving: bool = Field(True, description="drop returns from objects keeping station with the sensor, e.g. a chase boat (default true)")
 
 
 class _NearestPlane:
@@ -77,9 +81,13 @@ class _NearestPlane:
 class _Prepared:
     """A de-skewed, downsampled scan with covariances and its k-d tree."""
 
-    def __init__(self, cloud: Cloud, twist: np.ndarray | None, p: GicpParams) -> None:
+    def __init__(self, cloud: Cloud, twist: np.ndarray | None, p: GicpParams, screen=None) -> None:
         self.cloud, self.twist = cloud, twist
         xyz = deskew(cloud.xyz, cloud.time, twist)
+        self.moving = np.empty((0, 3))  # points dropped as moving with the sensor
+        if screen is not None:
+            drop = screen(xyz)
+            self.moving, xyz = xyz[drop], xyz[~drop]
         self.points, self.tree = small_gicp.preprocess_points(
             xyz, downsampling_resolution=p.voxel_m, num_neighbors=p.num_neighbors, num_threads=p.num_threads
         )
@@ -102,16 +110,24 @@ class Gicp(DeskewingMatcher):
         super().__init__(params)
         self.p = params
 
-    def _prepare(self, cloud: Cloud, twist: np.ndarray | None) -> _Prepared:
-        return _Prepared(cloud, twist, self.p)
+    def _prepare(self, cloud: Cloud, twist: np.ndarray | None, screen=None) -> _Prepared:
+        return _Prepared(cloud, twist, self.p, screen)
+
+    def _comoving_screen(self, prior: np.ndarray):
+        """The mask of a de-skewed scan's points moving with the sensor, against the current reference (None: off)."""
+        if not self.p.drop_comoving:
+            return None
+        ref, p = self._ref, self.p
+        return lambda xyz: moving_with_sensor(xyz, prior, ref.xyz, ref.normals, ref.nearest, ref.moving, p.max_correspondence_m, p.voxel_m)
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
         prior = T = self.velocity.predict(dt)
         twist = self.velocity.twist_per_s
         ref = self._ref
+        screen = self._comoving_screen(prior)
         for _ in range(p.deskew_iterations):
-            cur = self._prepare(cloud, twist)
+            cur = self._prepare(cloud, twist, screen)
             if len(cur.xyz) < 6 or len(ref.xyz) < 6:
                 self._cur = cur
                 return MatchResult.failure("too few points after downsampling")
@@ -142,6 +158,7 @@ class Gicp(DeskewingMatcher):
             "iterations": int(res.iterations),  # of the last de-skew round
             "inlier_share": float(inlier_share),
             "points_used": n_src,
+            "comoving_points": len(cur.moving),
         }
         if inlier_share < p.min_inlier_share:
             return MatchResult.failure(f"inlier share {inlier_share:.2f} < min_inlier_share {p.min_inlier_share}", **info)

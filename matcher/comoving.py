@@ -7,7 +7,8 @@ one). Where the prior predicts a motion well above the range noise, a point that
 within a quarter of that motion and better than "static" by half of it moves with the sensor.
 Surfaces parallel to the motion fit both equally and are kept (they say nothing about it). The
 points found are remembered, so that the next scan's returns from the same object are dropped
-too, although the screened reference no longer holds them.
+too, although the screened reference no longer holds them, unless they fit the static world (or a
+patch of wall once dropped would stay dropped, moving with the sensor, and spread scan by scan).
 """
 
 from __future__ import annotations
@@ -34,15 +35,16 @@ def moving_with_sensor(xyz: np.ndarray, prior: np.ndarray, ref_xyz: np.ndarray, 
                        ref_moving: np.ndarray, max_m: float, recall_m: float) -> np.ndarray:
     """Mask of the points of `xyz` (new scan, its frame) that move with the sensor, given the motion
     `prior` (4x4, new frame in the reference's), the reference's points, normals and nearest-point
-    query, and the points found moving in the reference (its frame; within recall_m of one, a
-    point is taken as the same object)."""
+    query, and the points found moving in the reference (its frame): a point within recall_m of one
+    is taken as the same object unless it fits the static world."""
     motion = float(np.linalg.norm(prior[:3, 3]))
-    moving = np.zeros(len(xyz), dtype=bool)
-    if len(ref_moving):
-        moving |= np.isfinite(cKDTree(ref_moving).query(xyz, distance_upper_bound=recall_m)[0])
     if motion < MIN_MOTION_M or len(xyz) == 0:
-        return moving
-    unmoved = plane_distance(xyz, ref_xyz, ref_normals, ref_nearest, max_m)
+        return np.zeros(len(xyz), dtype=bool)
     static = plane_distance(transform(xyz, prior[:3, :3], prior[:3, 3]), ref_xyz, ref_normals, ref_nearest, max_m)
+    unmoved = plane_distance(xyz, ref_xyz, ref_normals, ref_nearest, max_m)
     close = unmoved < 0.25 * motion
-    return moving | (close & (static - np.where(close, unmoved, 0.0) > 0.5 * motion))
+    moving = close & (static - np.where(close, unmoved, 0.0) > 0.5 * motion)
+    if len(ref_moving):
+        recalled = np.isfinite(cKDTree(ref_moving).query(xyz, distance_upper_bound=recall_m)[0])
+        moving |= recalled & ~(static < 0.25 * motion)
+    return moving

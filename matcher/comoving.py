@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from matcher.motion import transform
+from matcher.planarity import voxel_keys
 
 MIN_MOTION_M = 0.05
 """Below this predicted motion per scan the two hypotheses cannot be told apart: nothing is dropped."""
@@ -40,11 +41,14 @@ def moving_with_sensor(xyz: np.ndarray, prior: np.ndarray, ref_xyz: np.ndarray, 
     motion = float(np.linalg.norm(prior[:3, 3]))
     if motion < MIN_MOTION_M or len(xyz) == 0:
         return np.zeros(len(xyz), dtype=bool)
-    static = plane_distance(transform(xyz, prior[:3, :3], prior[:3, 3]), ref_xyz, ref_normals, ref_nearest, max_m)
-    unmoved = plane_distance(xyz, ref_xyz, ref_normals, ref_nearest, max_m)
+    # judged on one point per cell of recall_m (the matcher's voxel), the verdict shared by the cell's points
+    _, first, cell = np.unique(voxel_keys(xyz, recall_m), return_index=True, return_inverse=True)
+    q = xyz[first]
+    static = plane_distance(transform(q, prior[:3, :3], prior[:3, 3]), ref_xyz, ref_normals, ref_nearest, max_m)
+    unmoved = plane_distance(q, ref_xyz, ref_normals, ref_nearest, max_m)
     close = unmoved < 0.25 * motion
     moving = close & (static - np.where(close, unmoved, 0.0) > 0.5 * motion)
     if len(ref_moving):
-        recalled = np.isfinite(cKDTree(ref_moving).query(xyz, distance_upper_bound=recall_m)[0])
+        recalled = np.isfinite(cKDTree(ref_moving).query(q, distance_upper_bound=recall_m)[0])
         moving |= recalled & ~(static < 0.25 * motion)
-    return moving
+    return moving[cell.reshape(-1)]

@@ -114,11 +114,17 @@ class Gicp(DeskewingMatcher):
         return _Prepared(cloud, twist, self.p, screen)
 
     def _comoving_screen(self, prior: np.ndarray):
-        """The mask of a de-skewed scan's points moving with the sensor, against the current reference (None: off)."""
+        """The mask of a de-skewed scan's points moving with the sensor, against the current reference, found
+        on the first de-skew and kept for the later ones (a point stays where it was within a few cm); None: off."""
         if not self.p.drop_comoving:
             return None
-        ref, p = self._ref, self.p
-        return lambda xyz: moving_with_sensor(xyz, prior, ref.xyz, ref.normals, ref.nearest, ref.moving, p.max_correspondence_m, p.voxel_m)
+        ref, p, found = self._ref, self.p, []
+
+        def screen(xyz: np.ndarray) -> np.ndarray:
+            if not found:
+                found.append(moving_with_sensor(xyz, prior, ref.xyz, ref.normals, ref.nearest, ref.moving, p.max_correspondence_m, p.voxel_m))
+            return found[0]
+        return screen
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p

@@ -16,7 +16,7 @@ import numpy as np
 _MIN_POINTS = 5
 
 
-def _voxel_keys(xyz: np.ndarray, voxel_m: float) -> np.ndarray:
+def voxel_keys(xyz: np.ndarray, voxel_m: float) -> np.ndarray:
     """One int64 key per point for its voxel (21 bits per axis, as small_gicp's voxel grid)."""
     ijk = np.floor(xyz / voxel_m).astype(np.int64) & 0x1FFFFF
     return (ijk[:, 0] << 42) | (ijk[:, 1] << 21) | ijk[:, 2]
@@ -25,7 +25,7 @@ def _voxel_keys(xyz: np.ndarray, voxel_m: float) -> np.ndarray:
 def planarity(raw: np.ndarray, query: np.ndarray, voxel_m: float) -> np.ndarray:
     """(len(query),) lambda2 / lambda1 of the covariance of the `raw` points (N, 3) in each query
     point's voxel of side voxel_m (0 where the voxel holds fewer than 5 raw points)."""
-    keys, inverse = np.unique(_voxel_keys(raw, voxel_m), return_inverse=True)
+    keys, inverse = np.unique(voxel_keys(raw, voxel_m), return_inverse=True)
     m = len(keys)
     count = np.bincount(inverse, minlength=m).astype(float)
     mean = np.stack([np.bincount(inverse, raw[:, i], m) for i in range(3)], axis=1) / np.maximum(count, 1.0)[:, None]
@@ -36,6 +36,6 @@ def planarity(raw: np.ndarray, query: np.ndarray, voxel_m: float) -> np.ndarray:
             cov[:, i, j] = cov[:, j, i] = np.bincount(inverse, d[:, i] * d[:, j], m)
     lam = np.linalg.eigvalsh(cov)  # ascending
     value = np.where((count >= _MIN_POINTS) & (lam[:, 2] > 0), lam[:, 1] / np.where(lam[:, 2] > 0, lam[:, 2], 1.0), 0.0)
-    q = _voxel_keys(query, voxel_m)
+    q = voxel_keys(query, voxel_m)
     at = np.clip(np.searchsorted(keys, q), 0, m - 1)
     return np.where(keys[at] == q, value[at], 0.0)

@@ -105,14 +105,16 @@ def test_pcap_replay_within_its_quantisation(recorded):
         want, got = tum(run / f"{mid}.tum"), tum(out / f"{mid}.tum")
         np.testing.assert_array_equal(got[:, 0], want[:, 0])  # scans cut at the revolution start, stamped to the microsecond
         a, b = odometry(want), odometry(got)
-        assert np.abs(a[:, :2, 3] - b[:, :2, 3]).max() < 0.01  # measured 3.0 mm over 6 m (2 mm range, 0.01 deg azimuth)
+        # measured 5.7 cm over the 6 m (3.0 mm before gicp's co-moving screen: on a few points at the canal's edges the
+        # 2 mm range and 0.01 deg azimuth quantisation flips its static/moving-with-the-sensor decision)
+        assert np.abs(a[:, :2, 3] - b[:, :2, 3]).max() < 0.1
         # the canal's weakly observed vertical: where gicp finds a translation degenerate it keeps its motion prior, and the
         # 2 mm quantisation flips that decision on a few scans (measured 6.3 cm over the 3 s)
         assert np.abs(a[:, 2, 3] - b[:, 2, 3]).max() < 0.1
         angle = Rotation.from_matrix(np.linalg.inv(a[:, :3, :3]) @ b[:, :3, :3]).magnitude()
         assert np.degrees(angle).max() < 0.1  # measured 0.06 deg (0.02 before gicp weighed its normals by planarity, which quantisation moves)
     want, got = tum(run / "ekf.tum"), tum(out / "ekf.tum")
-    assert np.hypot(*(want[:, 1:3] - got[:, 1:3]).T).max() < 0.01  # odometry only in these 3 s (its monitor trusts no fix yet): 3.9 mm
+    assert np.hypot(*(want[:, 1:3] - got[:, 1:3]).T).max() < 0.1  # odometry only in these 3 s (its monitor trusts no fix yet): 5.7 cm
     # GPRMC's time of 0.01 s puts each fix 1.1 ms before the scan it shares its stamp with in simulation, so gps_only
     # takes it a scan earlier: its pose at scan k is the simulated one at scan k + 1, to RMC's 5 decimals of minutes
     want, got = tum(run / "gps_only.tum"), tum(out / "gps_only.tum")

@@ -39,6 +39,7 @@ install_python
 
 case "${1:-}" in
     demo) shift; exec "$VENV/bin/riverbench" run quickstart "$@" ;;
-    test) shift; exec "$PY" -m pytest -n 2 "$@" ;;
+    # at most 8 tests queued per worker: the one running the long library suite is not left a backlog the other cannot take
+    test) shift; exec "$PY" -m pytest -n 2 --maxschedchunk 8 "$@" ;;
     *) echo "usage: ./dev.sh demo | test [args]" >&2; exit 2 ;;
 esac

@@ -207,12 +207,17 @@ def _arch_curve(a: float, b: float, spring: float, crown: float, n: int = 16) ->
     return uu, zz
 
 
+def _swept(origin, u, v, uu: np.ndarray):
+    """(vv, z) -> ENU points of an arch curve at stations uu along the axis, at offset vv across the deck and heights z."""
+    return lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(len(uu), vv), z])
+
+
 def _rib_span(origin, u, v, a: float, b: float, spring: float, crown: float, depth: float, across: np.ndarray,
               column_every: float, deck_bottom: float) -> list[trimesh.Trimesh]:
     """Steel arch ribs 0.8 m wide between pier faces a < b at each offset `across` (their sides face
     along the route), and 0.5 m square spandrel columns from each rib up to the deck every column_every m."""
     uu, zz = _arch_curve(a, b, spring, crown)
-    curve = lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(len(uu), vv), z])  # noqa: E731
+    curve = _swept(origin, u, v, uu)
     out = []
     for c in across:
         lo, hi = c - 0.4, c + 0.4
@@ -232,7 +237,7 @@ def _arch_span(origin, u, v, a: float, b: float, spring: float, crown: float, to
     """Elliptical masonry vault between pier faces a < b (intrados from `spring` to `crown`, facing down) and
     its spandrel walls up to `top` (facing out of the bridge)."""
     uu, zz = _arch_curve(a, b, spring, crown)
-    curve = lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(len(uu), vv), z])  # noqa: E731
+    curve = _swept(origin, u, v, uu)
     vault = orient(strip(np.stack([curve(-half_w, zz), curve(half_w, zz)])), -UP)
     sides = [orient(strip(np.stack([curve(s * half_w, zz), curve(s * half_w, np.full(len(uu), top))])), np.r_[s * v, 0.0])
              for s in (-1, 1)]

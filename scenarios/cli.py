@@ -150,45 +150,155 @@ def suite(
     scenario: list[str] = typer.Argument(None, help="library names or .toml paths (default: the whole library)"),
     workers: int = typer.Option(2, min=1, help="scenarios run at once"),
     junit: Path = typer.Option(None, help="write JUnit XML here"),
-    fast: bool = typer.Option(False, "--fast", help="each scenario's short [fast] variant"),
+    fast: bool = typer.Option(None, "--fast/--full", show_default=False,
+                              help="each scenario's short [fast] variant, or the full one (default: full; with --baseline, as the baseline ran)"),
+    seeds: int = typer.Option(None, min=1, show_default=False,
+                              help="run each scenario on this many seeds (its own and the next); default 1, 5 with --save-baseline, "
+                                   "with --baseline the baseline's (or its first N)"),
+    set_: list[str] = typer.Option([], "--set", help="override a field in every scenario: key=value, repeatable"),
+    save_baseline: Path = typer.Option(None, "--save-baseline", help="store every metric of every seed's run in this baseline file"),
+    baseline: Path = typer.Option(None, "--baseline", help="judge every metric against this baseline file; exit 1 on a regression"),
     out: Path = typer.Option(None, help="directory of the run directories (default runs/suite-<UTC time>/)"),
     timeout: float = typer.Option(3600.0, min=1.0, help="seconds a scenario may take before it counts as failed"),
     quiet: bool = typer.Option(False, "--quiet", help="no per-scenario lines"),
 ) -> None:
-    """Run scenarios as a regression suite; exit 1 when any expectation fails or a scenario crashes."""
+    """Run scenarios as a regression suite; exit 1 when an expectation fails, a scenario crashes or (--baseline) a metric regressed."""
     from datetime import datetime, timezone
 
     import scenarios
+    from scenarios import baseline as baselines
+    from scenarios import provenance
     from scenarios.suite import run_suite, write_junit, write_summary
-    from scenarios.summary import suite_table
+    from scenarios.summary import regression_table, suite_table
 
-    sources = list(scenario or scenarios.available())
     with user_errors():
-        for source in sources:
-            scenarios.load(source)
-    out = out or Path("runs") / f"suite-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
-    with user_errors():
+        stored = baselines.load(baseline) if baseline is not None else None
+        sources = list(scenario or scenarios.available())
+        names = {source: scenarios.load(source, set=set_).name for source in sources}
+        if stored is not None:
+            fast = _as_baseline(fast, stored, baseline)
+            if not set(names.values()) & set(stored.scenarios):
+                raise ValueError(f"baseline {baseline} has none of these scenarios (it has: {', '.join(sorted(stored.scenarios))})")
+        fast = bool(fast)
+        jobs = _suite_jobs(sources, names, seeds, stored, save_baseline is not None, tuple(set_))
+        out = out or Path("runs") / f"suite-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
         if out.exists() and any(out.iterdir()):
             raise ValueError(f"output directory {out} exists and is not empty")
 
     def done(case) -> None:
         if not quiet:
             mark = "[green]pass[/]" if case.passed else "[bold red]FAIL[/]"
-            console.print(f"{mark} {case.name} ({case.wall_s:.0f} s){': ' + case.error if case.error else ''}", highlight=False)
+            console.print(f"{mark} {case.label} ({case.wall_s:.0f} s){': ' + case.error if case.error else ''}", highlight=False)
 
+    signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops a suite as Ctrl-C does: scenarios stopped, no baseline half-written
     try:
-        cases = run_suite(sources, out, workers=workers, fast=fast, timeout_s=timeout, on_done=done)
+        cases = run_suite(jobs, out, workers=workers, fast=fast, timeout_s=timeout, on_done=done)
     except KeyboardInterrupt:
-        errors.print("[bold yellow]stopped:[/] suite interrupted; finished scenarios are in " + str(out), highlight=False)
+        errors.print("[bold yellow]stopped:[/] suite interrupted; finished scenarios are in " + str(out) +
+                     ("; no baseline written" if save_baseline else ""), highlight=False)
         raise typer.Exit(130) from None
-    write_summary(cases, out / "suite.json")
+    comparison = None
+    if stored is not None or save_baseline is not None:
+        measured = baselines.from_cases(cases, fast=fast, overrides=list(set_), provenance=provenance.collect())
+        if save_baseline is not None:
+            with user_errors():
+                measured.save(save_baseline)
+        if stored is not None:
+            from scenarios.regression import compare
+
+            comparison = compare(stored, measured)
+    write_summary(cases, out / "suite.json", comparison)
     if junit is not None:
         with user_errors():
-            write_junit(cases, junit)
+            write_junit(cases, junit, comparison)
     console.print(suite_table(cases))
-    failed = [c.name for c in cases if not c.passed]
+    failed = [c.label for c in cases if not c.passed]
     console.print(f"{len(cases) - len(failed)} passed, {len(failed)} failed" + (f": {', '.join(failed)}" if failed else ""))
-    raise typer.Exit(1 if failed else 0)
+    if save_baseline is not None:
+        broken = sum(bool(c.error) for c in cases)
+        console.print(f"wrote baseline {save_baseline}: {len({c.name for c in cases})} scenarios x {len(jobs) // max(len(sources), 1)} seeds"
+                      + (f" ([bold red]{broken} runs failed[/]: their metrics are null)" if broken else ""), highlight=False)
+    if comparison is not None:
+        from scenarios import compare as comparing
+
+        console.print(regression_table(comparison))
+        page = comparing.write([out], out / "comparison", against=comparison)
+        console.print(f"comparison report: {page}", highlight=False)
+    raise typer.Exit(1 if failed or (comparison is not None and comparison.failed) else 0)
+
+
+def _as_baseline(fast: bool | None, stored, path: Path) -> bool:
+    """--fast/--full as the baseline ran (a mismatch is bad input: the numbers would not be comparable)."""
+    if fast is not None and fast != stored.fast:
+        raise ValueError(f"baseline {path} ran the {'fast' if stored.fast else 'full'} variants; drop --{'full' if fast is False else 'fast'}")
+    return stored.fast
+
+
+def _suite_jobs(sources: list[str], names: dict[str, str], seeds: int | None, stored, saving: bool, overrides: tuple[str, ...]) -> list:
+    """The suite's runs: one per scenario as before, or per scenario and seed (a baseline's seeds when comparing)."""
+    from scenarios import load
+    from scenarios.suite import Job, jobs_for
+
+    if stored is None and seeds is None and not saving:
+        return jobs_for(sources, None, overrides)
+    count = seeds or (5 if stored is None else None)
+    jobs = []
+    for source in sources:
+        runs = stored.scenarios.get(names[source]) if stored is not None else None
+        if runs is not None:
+            if count is not None and count > len(runs.seeds):
+                raise ValueError(f"--seeds {count}: the baseline ran {names[source]} on {len(runs.seeds)} seeds")
+            chosen = runs.seeds[:count]
+        else:
+            first = load(source).seed
+            chosen = list(range(first, first + (count or _baseline_seed_count(stored))))
+        jobs += [Job(source, s, overrides, f"{names[source]}/seed-{s}") for s in chosen]
+    return jobs
+
+
+def _baseline_seed_count(stored) -> int:
+    """How many seeds a scenario new since the baseline runs on: as many as the baseline's scenarios mostly have."""
+    counts = [len(r.seeds) for r in stored.scenarios.values()]
+    return max(set(counts), key=counts.count) if counts else 1
+
+
+@app.command("compare-baselines")
+def compare_baselines(
+    base: Path = typer.Argument(..., help="the reference baseline file (e.g. main's)"),
+    new: Path = typer.Argument(..., help="the baseline file to judge (e.g. a feature branch's)"),
+    seeds: int = typer.Option(None, min=1, show_default=False, help="compare on the first N seeds both have (default all)"),
+    junit: Path = typer.Option(None, help="write JUnit XML here (a testcase per scenario and metric family)"),
+    out: Path = typer.Option(None, help="write report.md and report.html of the comparison into this directory"),
+    json_out: Path = typer.Option(None, "--json", help="write the comparison as JSON here"),
+) -> None:
+    """Compare two stored baselines without running anything; exit 1 when a metric regressed."""
+    import json
+
+    from scenarios import baseline as baselines
+    from scenarios.atomic import atomic_path
+    from scenarios.regression import compare
+    from scenarios.suite import write_junit
+    from scenarios.summary import regression_table
+
+    with user_errors():
+        a, b = baselines.load(base), baselines.load(new)
+        if a.fast != b.fast:
+            raise ValueError(f"{base} ran the {'fast' if a.fast else 'full'} variants and {new} the {'fast' if b.fast else 'full'} ones: "
+                             "their numbers are not comparable")
+        if not set(a.scenarios) & set(b.scenarios):
+            raise ValueError(f"{base} and {new} have no scenario in common")
+        comparison = compare(a, b, seeds)
+        if junit is not None:
+            write_junit([], junit, comparison)
+        if json_out is not None:
+            with atomic_path(json_out) as tmp:
+                tmp.write_text(json.dumps(comparison.as_dict(), indent=2) + "\n")
+        if out is not None:
+            from scenarios import compare as comparing
+
+            console.print(f"comparison report: {comparing.write_against(comparison, out)}", highlight=False)
+    console.print(regression_table(comparison))
+    raise typer.Exit(1 if comparison.failed else 0)
 
 
 def _interrupt(signum, frame) -> None:

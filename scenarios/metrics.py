@@ -12,6 +12,8 @@ or when what the environment added to it exceeds 5 m (`added_5m`, what integrity
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from fnmatch import fnmatchcase
 
 import numpy as np
 
@@ -21,6 +23,62 @@ from scenarios.record import FixTable, RunRecord
 RPE_DISTANCES_M = (10.0, 100.0)
 FAULT_M = 5.0
 FALSE_ALARM_BUDGET = 0.05
+
+
+@dataclass(frozen=True)
+class Family:
+    """A family of metrics judged alike against a baseline: which way is better and what change is too small to call.
+
+    A change is called when the median over seeds of the paired change (now - baseline, same seed) exceeds
+    max(abs_tol, rel_tol x |baseline median|, the seeds' own noise) in the worse or better direction
+    (scenarios.regression). `better` "none" marks what describes the scenario rather than the code under test
+    (GPS the simulated receiver gave, window counts, point counts): any change is reported, none is a regression.
+    """
+
+    name: str
+    patterns: tuple[str, ...]
+    better: str  # "lower", "higher" or "none"
+    abs_tol: float = 0.0
+    rel_tol: float = 0.0
+    any_seed: bool = False  # a 0/1 outcome (a crash, a collision): one seed worse is a regression
+    wall_clock: bool = False  # depends on the machine's load: reported, never an exit-1 regression
+
+
+FAMILIES: tuple[Family, ...] = (
+    Family("wall clock", ("run.wall_s", "matchers.*.ms.*"), "lower", rel_tol=0.5, wall_clock=True),
+    Family("speed", ("run.realtime_factor", "matchers.*.hz"), "higher", rel_tol=0.33, wall_clock=True),
+    Family("memory", ("run.peak_rss_mb",), "lower", rel_tol=0.25, wall_clock=True),
+    Family("component failures", ("estimators.*.failed", "matchers.*.failed"), "lower", any_seed=True),
+    Family("collisions", ("vessel.collisions",), "lower", any_seed=True),
+    Family("completion", ("vessel.completed",), "higher", any_seed=True),
+    Family("scenario", ("run.*", "gps.*", "estimators.*.windows.*.count", "estimators.*.windows.*.seconds",
+                        "estimators.*.monitor.*.faulty", "*.rpe_*m.pairs", "*.failed_at", "matchers.*.gated",
+                        "matchers.*.points.*", "vessel.clearance_threshold_m", "vessel.distance_m",
+                        "vessel.collision_t", "vessel.min_clearance_t"), "none"),
+    Family("position error", ("*.ape.*", "*.ape_aligned.*", "*.rpe_*m.rmse", "*.rpe_*m.mean", "*.rpe_*m.median",
+                              "*.rpe_*m.p95", "*.rpe_*m.max", "estimators.*.windows.*.max_error",
+                              "estimators.*.windows.*.exit_error", "estimators.*.windows.*.added", "vessel.cross_track.*"),
+           "lower", abs_tol=0.05, rel_tol=0.10),
+    Family("drift per distance", ("*.rpe_*m.percent",), "lower", abs_tol=0.05, rel_tol=0.10),
+    Family("heading error", ("*.yaw.*",), "lower", abs_tol=0.1, rel_tol=0.10),
+    Family("recovery time", ("estimators.*.windows.*.recover_s",), "lower", abs_tol=0.5, rel_tol=0.20),
+    Family("recovered share", ("estimators.*.windows.*.recovered",), "higher", abs_tol=0.01),
+    Family("availability", ("estimators.*.available",), "higher", abs_tol=0.005),
+    Family("fault detection", ("estimators.*.monitor.*.recall", "estimators.*.monitor.*.recall_at_5pct_fa",
+                               "estimators.*.monitor.*.precision"), "higher", abs_tol=0.03),
+    Family("false alarms", ("estimators.*.monitor.*.false_alarm_rate",), "lower", abs_tol=0.01, rel_tol=0.10),
+    Family("matching success", ("matchers.*.success",), "higher", abs_tol=0.01),
+    Family("degenerate matches", ("matchers.*.degenerate",), "lower", abs_tol=0.02),
+    Family("clearance", ("vessel.min_clearance_m",), "higher", abs_tol=0.2, rel_tol=0.10),
+    Family("time near structures", ("vessel.time_below_threshold_s",), "lower", abs_tol=1.0, rel_tol=0.20),
+)
+"""Every number of metrics.json, by family (first match of its dotted path wins); directions declared once, here."""
+UNCLASSIFIED = Family("unclassified", ("*",), "none")
+
+
+def family_of(path: str) -> Family:
+    """The family of a metric's dotted path (UNCLASSIFIED, never a regression, when none matches)."""
+    return next((f for f in FAMILIES if any(fnmatchcase(path, p) for p in f.patterns)), UNCLASSIFIED)
 
 
 def stats(values: np.ndarray) -> dict:

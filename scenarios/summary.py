@@ -52,6 +52,44 @@ def suite_table(cases) -> Table:
     for c in cases:
         passed = sum(e["pass"] for e in c.expectations)
         first = c.error or next((e["reason"] for e in c.expectations if not e["pass"]), "")
-        table.add_row(c.name, "[green]pass[/]" if c.passed else "[bold red]FAIL[/]", f"{passed}/{len(c.expectations)}",
+        table.add_row(c.label, "[green]pass[/]" if c.passed else "[bold red]FAIL[/]", f"{passed}/{len(c.expectations)}",
                       _num(c.realtime_factor, ".1f"), f"{c.wall_s:.0f}", first)
     return table
+
+
+CHANGED_ROWS = 12
+"""Metrics without a direction that moved, listed in the terminal before '... and N more' (all are in suite.json)."""
+
+
+def regression_table(comparison) -> Table:
+    """Regressions, then improvements, then moved metrics without a direction, grouped by scenario: metric, baseline
+    median [min..max] over seeds, now, median paired change, verdict (fits 80 columns)."""
+    table = Table(title="against the baseline", box=box.SIMPLE_HEAD, caption=comparison.sentence())
+    table.add_column("metric", overflow="fold", min_width=28)
+    for column in ("baseline median\n[min..max]", "now\nmedian", "change"):
+        table.add_column(column, justify="right")
+    table.add_column("verdict")
+    style = {"regressed": "[bold red]regressed[/]", "improved": "[green]improved[/]", "changed": "changed"}
+    changed = comparison.by("changed")
+    shown = [*comparison.by("regressed"), *comparison.by("improved"), *changed[:CHANGED_ROWS]]
+    scenario = None
+    for v in sorted(shown, key=lambda v: v.scenario):  # stable: regressions first within a scenario
+        if v.scenario != scenario:
+            scenario = v.scenario
+            table.add_row(f"[bold]{scenario}[/]", "", "", "", "")
+        row = v.as_dict()
+        base = f"{_num(row['baseline_median'], '.4g')}\n[{_num(row['baseline_min'], '.3g')}..{_num(row['baseline_max'], '.3g')}]"
+        verdict = style[v.verdict] + ("" if v.gating else "\n(wall clock)")
+        table.add_row(f"  {v.metric}", base, _num(row["now_median"], ".4g"), _change(row), verdict)
+    if len(changed) > CHANGED_ROWS:
+        table.add_row(f"... and {len(changed) - CHANGED_ROWS} more changed (suite.json)", "", "", "", "")
+    return table
+
+
+def _change(row: dict) -> str:
+    """'+0.69 (+28%)': the median paired change, and relative to the baseline's median."""
+    change, base = row["change"], row["baseline_median"]
+    if change is None:
+        return "–"
+    relative = f" ({change / abs(base):+.0%})" if base else ""
+    return f"{change:+.3g}\n{relative.strip()}" if relative else f"{change:+.3g}"

@@ -17,10 +17,13 @@ from pathlib import Path
 from scenarios import report
 from scenarios.atomic import atomic_dir
 from scenarios.compare import blocks, groups, runs, verdicts
+from scenarios.compare.against import section as baseline_section
+from scenarios.regression import Comparison
 
 
-def write(sources: list[Path], out_dir: Path) -> Path:
-    """Write report.md, report.html (self-contained, images embedded as data: URIs) and plots/*.png into out_dir; return report.html."""
+def write(sources: list[Path], out_dir: Path, against: Comparison | None = None) -> Path:
+    """Write report.md, report.html (self-contained, images embedded as data: URIs) and plots/*.png into out_dir; return report.html.
+    With `against` (the runs judged against a baseline) the page opens with what regressed, improved or changed."""
     out_dir = Path(out_dir)
     run_dirs, listings = runs.find(sources)
     if (out_dir / "metrics.json").exists():
@@ -30,8 +33,20 @@ def write(sources: list[Path], out_dir: Path) -> Path:
     with atomic_dir(out_dir) as tmp:
         images = blocks.draw_rocs(confs, tmp)
         page = blocks.build(confs, images, stopped, out_dir)
+        if against is not None:
+            page[3:3] = baseline_section(against)  # after the title, what was compared and how to read it
         (tmp / "report.md").write_text(report.to_markdown(page), encoding="utf-8")
         (tmp / "report.html").write_text(report.to_html(page, tmp, title="riverbench comparison"), encoding="utf-8")
+    return out_dir / "report.html"
+
+
+def write_against(comparison: Comparison, out_dir: Path) -> Path:
+    """A comparison page of two stored baselines (no runs to show): report.md and report.html with the baseline section."""
+    out_dir = Path(out_dir)
+    page = [report.Heading(1, "riverbench: baseline against baseline"), *baseline_section(comparison)]
+    with atomic_dir(out_dir) as tmp:
+        (tmp / "report.md").write_text(report.to_markdown(page), encoding="utf-8")
+        (tmp / "report.html").write_text(report.to_html(page, tmp, title="riverbench baseline comparison"), encoding="utf-8")
     return out_dir / "report.html"
 
 

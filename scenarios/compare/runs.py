@@ -109,6 +109,16 @@ def unfinished(listings: list[Path]) -> list[Unfinished]:
             out += [Unfinished(f"{r['scenario']} (seed {r['seed']})", str(r.get("reason") or r["status"]), f)
                     for r in sweep_table.read(f.parent) if r.get("status") != "ok"]
         else:
-            out += [Unfinished(str(case.get("name", NULL)), str(case["error"]), f)
-                    for case in _read(f, json.loads, "JSON", list) if isinstance(case, dict) and case.get("error")]
+            out += [Unfinished(str(case.get("name", NULL)) + (f" (seed {case['seed']})" if case.get("seed") is not None else ""),
+                               str(case["error"]), f)
+                    for case in suite_cases(f) if isinstance(case, dict) and case.get("error")]
     return out
+
+
+def suite_cases(path: Path) -> list:
+    """The cases of a suite.json: {"cases": [...], ...}, or the bare list older suites wrote."""
+    tree = _read(path, json.loads, "JSON", (dict, list))
+    cases = tree.get("cases") if isinstance(tree, dict) else tree
+    if not isinstance(cases, list):
+        raise ValueError(f"{path}: no list of cases")
+    return cases

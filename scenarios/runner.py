@@ -26,7 +26,7 @@ import tomli_w
 
 import sim
 import worlds
-from scenarios import files, metrics, vessel_log
+from scenarios import files, metrics, provenance, vessel_log
 from scenarios import windows as win
 from scenarios.expectations import Outcome
 from scenarios.feed import Feed, RunFailed, RunInterrupted  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
@@ -142,6 +142,7 @@ def _write(scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel
     safe = metrics.json_safe(tree)
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]
+    safe = {"provenance": provenance.collect(), **safe}
     (tmp / "scenario.toml").write_text(f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
                                        + tomli_w.dumps(scenario.resolved()))
     (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")

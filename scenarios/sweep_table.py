@@ -35,7 +35,7 @@ def flatten(metrics: dict) -> dict:
         elif node is None:
             out[path] = None
 
-    walk({k: v for k, v in metrics.items() if k != "expectations"}, "")
+    walk({k: v for k, v in metrics.items() if k not in ("expectations", "provenance")}, "")
     out["run.failures"] = len(metrics.get("run", {}).get("failures", []))
     outcomes = metrics.get("expectations", [])
     out["expectations.passed"] = sum(bool(o.get("pass")) for o in outcomes)

@@ -4,6 +4,7 @@ and the expectations are not loose: each scenario fails when what it tests is ta
 import json
 import re
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -16,18 +17,32 @@ runner = CliRunner()
 ESTIMATOR_IN = re.compile(r"^estimators\.([A-Za-z_0-9]+)\.")
 
 
-@pytest.mark.early  # the longest test (~4 min): started first, the other worker runs the rest meanwhile
-def test_fast_suite_of_the_library_passes_and_writes_junit(tmp_path):
+BASELINE = Path(__file__).resolve().parent.parent / "benchmarks" / "baseline" / "library.json"
+CI_SEEDS = 3
+"""Seeds the CI comparison runs (the first of the baseline's five): about 15 minutes on 2 cores."""
+
+
+@pytest.mark.slow  # ~15 min: the library's fast variants on 3 seeds, judged metric by metric against the committed baseline
+def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
     junit = tmp_path / "suite.xml"
-    result = runner.invoke(app, ["suite", "--fast", "--workers", "2", "--junit", str(junit), "--out", str(tmp_path / "runs")])
-    assert result.exit_code == 0, result.output
+    result = runner.invoke(app, ["suite", "--baseline", str(BASELINE), "--seeds", str(CI_SEEDS), "--workers", "2",
+                                 "--junit", str(junit), "--out", str(tmp_path / "runs"), "--quiet"])
+    summary = json.loads((tmp_path / "runs" / "suite.json").read_text())
+    comparison = summary["baseline_comparison"]
+    moved = [f"{m['scenario']} {m['metric']}: {m['verdict']} {m['baseline_median']} -> {m['now_median']}"
+             for m in comparison["metrics"] if m["verdict"] in ("regressed", "improved") and m["gating"]]
+    # an improvement not recorded in the baseline would let a later regression of the same size pass: refresh it
+    # (`riverbench suite --fast --save-baseline benchmarks/baseline/library.json`) in a commit naming the cause
+    assert result.exit_code == 0 and not moved, result.output + "\n".join(moved)
+    assert not comparison["new_scenarios"] and not comparison["missing_scenarios"] and not comparison["failed_runs"]
     names = scenarios.available()
     suite = ET.parse(junit).getroot()
-    expected = len(names) + sum(len(scenarios.load(n).fast_variant().expect) for n in names)
-    assert int(suite.get("tests")) == expected and suite.get("failures") == "0" and suite.get("errors") == "0"
+    expectations = sum(len(scenarios.load(n).fast_variant().expect) for n in names)
+    assert int(suite.get("tests")) > (1 + expectations / len(names)) * len(names) * CI_SEEDS  # runs, expectations, families
+    assert suite.get("failures") == "0" and suite.get("errors") == "0"
     for name in names:
-        assert (tmp_path / "runs" / name / "report.html").is_file()
-    assert (tmp_path / "runs" / "suite.json").is_file()
+        assert (tmp_path / "runs" / name / "seed-0" / "report.html").is_file()
+    assert (tmp_path / "runs" / "comparison" / "report.html").is_file()
 
 
 def test_suite_reports_a_failing_and_a_broken_scenario_and_exits_1(tmp_path):

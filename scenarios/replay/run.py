@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 
 import scenarios
 import worlds
-from scenarios import files
+from scenarios import files, provenance
 from scenarios import metrics as run_metrics
 from scenarios.export import check_out, staged_dir
 from scenarios.feed import Feed
@@ -135,6 +135,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     tree = run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float)))
     (tmp / "scenario.toml").write_text(f"# resolved scenario {scenario.hash}: its matchers and estimators replayed over {recording.path}\n"
                                        + tomli_w.dumps(scenario.resolved()))
+    tree = {"provenance": provenance.collect(), **tree}
     (tmp / "metrics.json").write_text(json.dumps(tree, indent=2) + "\n")
     for eid, poses in rec.estimates.items():
         files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)

@@ -1,0 +1,62 @@
+"""Regenerate every table of measured figures in docs/results.md and the README from the library's baseline.
+
+    .venv/bin/python benchmarks/results.py [--baseline benchmarks/baseline/library.json] [--check]
+
+The baseline comes from `riverbench suite --fast --seeds 5 --save-baseline benchmarks/baseline/library.json`
+(see the README's Regression baselines); each table is stamped with the commit and date it was measured at.
+--check writes nothing and exits 1 when a generated file is out of date (what tests/test_results_fresh.py checks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import scenarios
+from scenarios import baseline as baselines
+from scenarios.atomic import atomic_path
+from scenarios.results import library_markdown, replace_block, results_markdown
+
+ROOT = Path(__file__).resolve().parent.parent
+BASELINE = ROOT / "benchmarks" / "baseline" / "library.json"
+
+
+def library_expectations(fast: bool) -> dict[str, list[str]]:
+    """Each library scenario's expectations, of the variant the baseline ran."""
+    out = {}
+    for name in scenarios.available():
+        s = scenarios.load(name)
+        out[name] = list((s.fast_variant() if fast else s).expect)
+    return out
+
+
+def generated(baseline_path: Path = BASELINE) -> dict[Path, str]:
+    """The text each generated file must have, from the baseline."""
+    base = baselines.load(baseline_path)
+    readme = ROOT / "README.md"
+    return {ROOT / "docs" / "results.md": results_markdown(base, library_expectations(base.fast)),
+            readme: replace_block(readme.read_text(encoding="utf-8"), library_markdown(base))}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", type=Path, default=BASELINE)
+    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 when a file is out of date")
+    args = parser.parse_args()
+    stale = []
+    for path, text in generated(args.baseline).items():
+        current = path.read_text(encoding="utf-8") if path.exists() else ""
+        if current == text:
+            continue
+        stale.append(path)
+        if not args.check:
+            with atomic_path(path) as tmp:
+                tmp.write_text(text, encoding="utf-8")
+    for path in stale:
+        print(f"{'out of date' if args.check else 'wrote'}: {path.relative_to(ROOT)}")
+    return 1 if args.check and stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

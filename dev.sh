@@ -25,11 +25,11 @@ install_system() {
 }
 
 install_python() {
-    local stamp="$VENV/.installed-$(sha256sum pyproject.toml | cut -c1-16)"
+    local stamp="$VENV/.installed-$(cat pyproject.toml constraints.txt | sha256sum | cut -c1-16)"
     [ -f "$stamp" ] && return 0
     [ -x "$PY" ] || python3 -m venv "$VENV"
     "$PY" -m pip install -q --upgrade pip
-    "$PY" -m pip install -q -e ".[test,dev]"
+    "$PY" -m pip install -q -c constraints.txt -e ".[test,dev]"
     rm -f "$VENV"/.installed-*
     touch "$stamp"
 }

@@ -21,6 +21,24 @@ console = Console()
 errors = Console(stderr=True)
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            console.print(f"riverbench {version('riverbench')}", highlight=False)
+        except PackageNotFoundError:
+            console.print("riverbench (not installed: run from a source tree)", highlight=False)
+        raise typer.Exit(0)
+
+
+@app.callback()
+def main(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True, help="print the version and exit"),
+) -> None:
+    """riverbench: LiDAR-aided ASV positioning where GPS fails."""
+
+
 @contextmanager
 def user_errors() -> Iterator[None]:
     """Bad input ends with one line naming the problem and exit code 2, never a traceback."""

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import queue
-import resource
 import signal
 import traceback
 from collections import deque
@@ -23,6 +22,7 @@ import numpy as np
 
 import matcher as matchers_pkg
 from matcher.result import MatchResult, checked
+from scenarios.provenance import peak_rss_mb
 from sim.scan import Scan
 
 COST_MS = {"pcl6d": 8.0, "gicp": 5.0, "kiss_icp": 3.0, "bev3dof": 1.5}
@@ -92,7 +92,7 @@ def _worker(setups: list[MatcherSetup], inbox, outbox) -> None:
     while True:
         item = inbox.get()
         if item is None:
-            outbox.put(("rss", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0))
+            outbox.put(("rss", peak_rss_mb()))
             return
         stamp, points = item
         try:

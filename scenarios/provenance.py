@@ -55,3 +55,12 @@ def describe(prov: dict) -> str:
     return (f"riverbench {prov.get('riverbench', '?')}{at}, Python {prov.get('python', '?')} on {prov.get('platform', '?')}, "
             f"{prov.get('cpus', '?')} CPUs")
 
+
+
+def peak_rss_mb() -> float:
+    """This process's peak resident memory in MB (NaN where the platform has no POSIX `resource`, e.g. Windows)."""
+    try:
+        import resource
+    except ImportError:
+        return float("nan")
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import resource
 import shutil
 import tempfile
 import time
@@ -31,6 +30,7 @@ from scenarios import windows as win
 from scenarios.expectations import Outcome
 from scenarios.feed import Feed, RunFailed, RunInterrupted  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.provenance import peak_rss_mb
 from scenarios.record import Recorder, RunRecord
 from scenarios.spec import Scenario
 from scenarios.traffic_log import TrafficLog
@@ -123,7 +123,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         "scenario": scenario.name, "scenario_hash": scenario.hash, "seed": scenario.seed,
         "t_start": t_start, "t_end": t_last, "sim_s": sim_s, "wall_s": wall,
         "realtime_factor": sim_s / wall if wall > 0 else math.nan,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0 + workers_rss,
+        "peak_rss_mb": peak_rss_mb() + workers_rss,
         "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes,
         "failures": rec.failures,
     }

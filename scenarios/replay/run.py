@@ -20,7 +20,6 @@ import dataclasses
 import json
 import math
 import os
-import resource
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -34,6 +33,7 @@ from scipy.spatial.transform import Rotation
 import scenarios
 import worlds
 from scenarios import files, provenance
+from scenarios.provenance import peak_rss_mb
 from scenarios import metrics as run_metrics
 from scenarios.export import check_out, staged_dir
 from scenarios.feed import Feed
@@ -129,7 +129,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
                       "time_zero_utc": geo.utc(0.0).isoformat(), "origin": list(geo.origin), "origin_from": geo.origin_source},
         "t_start": recording.t_start, "t_end": recording.t_end, "duration_s": recording.t_end - recording.t_start,
         "wall_s": wall, "realtime_factor": (recording.t_end - recording.t_start) / wall if wall > 0 else math.nan,
-        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0 + workers_rss,
+        "peak_rss_mb": peak_rss_mb() + workers_rss,
         "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes, "failures": rec.failures,
     }
     tree = run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float)))

@@ -36,7 +36,7 @@ class ScenarioRuns(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     seeds: list[int] = Field(description="the seeds run, in order; every list below follows this order")
-    hashes: list[str] = Field(description="the resolved scenario's hash (scenarios.Scenario.hash) of each seed's run")
+    hashes: list[str] = Field(description="the resolved scenario's hash without its expectations (Scenario.setup_hash) of each seed's run")
     errors: dict[str, str] = Field(default_factory=dict, description="seed -> why that seed's run failed (its metrics are null)")
     metrics: dict[str, list[float | None]] = Field(description="dotted metrics.json path -> value per seed (null: not measured)")
 

@@ -305,6 +305,13 @@ class Scenario(BaseModel):
         data = {k: v for k, v in self.resolved().items() if k not in ("name", "description", "fast")}
         return hashlib.sha256(json.dumps(data, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
 
+    @property
+    def setup_hash(self) -> str:
+        """Identity of what is simulated and measured: the hash without the expectations, which judge the metrics but
+        never move them (what a baseline records: re-bounding an expectation leaves its runs comparable)."""
+        data = {k: v for k, v in self.resolved().items() if k not in ("name", "description", "fast", "expect")}
+        return hashlib.sha256(json.dumps(data, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+
     def expectations(self) -> list[Expectation]:
         return [Expectation.parse(text) for text in self.expect]
 

@@ -59,7 +59,7 @@ class CaseResult:
     error: str = ""
     realtime_factor: float | None = None
     seed: int | None = None
-    scenario_hash: str = ""
+    scenario_hash: str = ""  # Scenario.setup_hash: what ran, expectations left out (a baseline compares on it)
 
     @property
     def passed(self) -> bool:
@@ -86,7 +86,7 @@ def _run_case(index: int, job: Job, fast: bool, out_dir: str, workers: int, resu
         result = run(scenario, out_dir, workers=workers)
         results.put((index, CaseResult(scenario.name, str(result.out_dir), time.perf_counter() - start,
                                        result.metrics["expectations"], realtime_factor=result.metrics["run"]["realtime_factor"],
-                                       seed=job.seed, scenario_hash=scenario.hash)))
+                                       seed=job.seed, scenario_hash=scenario.setup_hash)))
     except BaseException as exc:  # the suite records any failure of one scenario and goes on
         results.put((index, CaseResult(job.name, out_dir, time.perf_counter() - start, error=f"{type(exc).__name__}: {exc}", seed=job.seed)))
 

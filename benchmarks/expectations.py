@@ -1,9 +1,9 @@
-"""Set every library expectation's bound from a baseline's spread over seeds (scenarios.results.derived_bound).
+"""Set every library expectation's bound from a baseline's spread over seeds (scenarios.report.results.derived_bound).
 
     .venv/bin/python benchmarks/expectations.py [benchmarks/baseline/library.json ...] [--write]
 
 Prints each expectation with the baseline's values (median, min-max) and the derived bound; --write rewrites the
-bounds in scenarios/library/*.toml (the [fast] lists from a baseline of fast variants, the scenario's own list from
+bounds in scenarios/spec/library/*.toml (the [fast] lists from a baseline of fast variants, the scenario's own list from
 a baseline of full runs) and replaces the comment above each rewritten list, whose typed figures went stale, by a
 pointer to docs/results.md. Commit the result with the baseline it came from; tests/test_library_expectations.py
 then holds every bound at least that tight.
@@ -18,8 +18,8 @@ import sys
 from pathlib import Path
 
 import scenarios
-from scenarios import baseline as baselines
-from scenarios.results import EXPECTATION, derived_bound, median_range
+from scenarios.report.results import EXPECTATION, derived_bound, median_range
+from scenarios.score import baseline as baselines
 
 ROOT = Path(__file__).resolve().parent.parent
 LIBRARY = ROOT / "scenarios" / "library"
@@ -67,7 +67,7 @@ def rewrite(text: str, runs, fast_lists: bool, source: str) -> tuple[str, list[s
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("baselines", nargs="*", type=Path, default=[ROOT / "benchmarks" / "baseline" / "library.json"])
-    parser.add_argument("--write", action="store_true", help="rewrite the bounds in scenarios/library/*.toml")
+    parser.add_argument("--write", action="store_true", help="rewrite the bounds in scenarios/spec/library/*.toml")
     args = parser.parse_args()
     for path in args.baselines:
         base = baselines.load(path)

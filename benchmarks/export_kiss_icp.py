@@ -23,8 +23,8 @@ from scipy.spatial.transform import Rotation
 import scenarios
 from scenarios.export import export
 from scenarios.export.frames import open_stream
-from scenarios.files import read_tum
-from scenarios.runner import run
+from scenarios.pipeline.files import read_tum
+from scenarios.pipeline.runner import run
 
 
 def tum_poses(path: Path) -> np.ndarray:

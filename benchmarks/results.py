@@ -14,9 +14,9 @@ import sys
 from pathlib import Path
 
 import scenarios
-from scenarios import baseline as baselines
-from scenarios.atomic import atomic_path
-from scenarios.results import library_markdown, replace_block, results_markdown
+from riverbench.atomic import atomic_path
+from scenarios.report.results import library_markdown, replace_block, results_markdown
+from scenarios.score import baseline as baselines
 
 ROOT = Path(__file__).resolve().parent.parent
 BASELINE = ROOT / "benchmarks" / "baseline" / "library.json"

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 import worlds
-from scenarios.preview import RevolutionStats, by_stretch, point_stats
+from scenarios.report.preview import RevolutionStats, by_stretch, point_stats
 from sim import HDL32E, Trajectory
 
 

@@ -27,8 +27,8 @@ import numpy as np
 import matcher
 import sim
 import worlds
-from scenarios.overrides import parse_value
-from scenarios.stream import FixEvent, events, pose_xyzyaw
+from scenarios.pipeline.stream import FixEvent, events, pose_xyzyaw
+from scenarios.spec.overrides import parse_value
 from sim.gnss import GnssReceiver
 
 SECTIONS = ("world", "vessel", "lidar", "gnss", "matcher", "traffic")

@@ -16,10 +16,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from scenarios.library import load
-from scenarios.runner import run
-from scenarios.sweep import run_sweep
-from scenarios.sweep_plan import Axis, SweepPlan
+from scenarios.batch.plan import Axis, SweepPlan
+from scenarios.batch.sweep import run_sweep
+from scenarios.pipeline.runner import run
+from scenarios.spec.library import load
 
 
 def plan(runs: int, seconds: float) -> SweepPlan:

@@ -14,9 +14,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from scenarios import compare
-from scenarios.sweep import check_metric, rank, run_sweep
-from scenarios.sweep_plan import Axis, SweepPlan
+from scenarios.batch.plan import Axis, SweepPlan
+from scenarios.batch.sweep import check_metric, rank, run_sweep
+from scenarios.report import compare
 
 OBJECTIVE = "estimators.ekf.windows.blackout.max_error"
 

@@ -10,21 +10,21 @@ from __future__ import annotations
 
 def available() -> list[str]:
     """Names of the library's scenarios."""
-    from scenarios.library import available as names
+    from scenarios.spec.library import available as names
 
     return names()
 
 
 def load(name_or_path, set: list[str] | None = None, seed: int | None = None):
-    """A validated Scenario from a library name or a TOML path (see scenarios.library.load)."""
-    from scenarios.library import load as load_scenario
+    """A validated Scenario from a library name or a TOML path (see scenarios.spec.library.load)."""
+    from scenarios.spec.library import load as load_scenario
 
     return load_scenario(name_or_path, set=set, seed=seed)
 
 
 def run(scenario, out_dir=None, **options):
-    """Run a Scenario and write its run directory (see scenarios.runner.run)."""
-    from scenarios.runner import run as run_scenario
+    """Run a Scenario and write its run directory (see scenarios.pipeline.runner.run)."""
+    from scenarios.pipeline.runner import run as run_scenario
 
     return run_scenario(scenario, out_dir, **options)
 

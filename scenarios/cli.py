@@ -12,7 +12,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from scenarios.errors import one_line
+from riverbench.errors import one_line
 
 app = typer.Typer(help="riverbench: LiDAR-aided ASV positioning where GPS fails.", no_args_is_help=True)
 worlds_app = typer.Typer(help="List, inspect and export the river worlds.", no_args_is_help=True)
@@ -58,7 +58,7 @@ def preview(
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
     """Simulate a world along its route; write preview.png, scan.pcd and summary.json."""
-    from scenarios.preview import run_preview
+    from scenarios.report.preview import run_preview
 
     with user_errors():
         summary = run_preview(world, out, n_samples=samples, seed=seed, quiet=quiet)
@@ -137,9 +137,9 @@ def run(
 ) -> None:
     """Run a scenario: write its run directory, print a summary; exit 1 when an expectation fails."""
     import scenarios
-    from scenarios.progress import RunProgress
-    from scenarios.runner import RunFailed, RunInterrupted
-    from scenarios.summary import run_table
+    from scenarios.pipeline.progress import RunProgress
+    from scenarios.pipeline.runner import RunFailed, RunInterrupted
+    from scenarios.report.summary import run_table
 
     with user_errors():
         spec = scenarios.load(scenario, set=set_, seed=seed)
@@ -184,10 +184,10 @@ def suite(
     from datetime import datetime, timezone
 
     import scenarios
-    from scenarios import baseline as baselines
-    from scenarios import provenance
-    from scenarios.suite import run_suite, write_junit, write_summary
-    from scenarios.summary import regression_table, suite_table
+    from riverbench import provenance
+    from scenarios.batch.suite import run_suite, write_junit, write_summary
+    from scenarios.report.summary import regression_table, suite_table
+    from scenarios.score import baseline as baselines
 
     with user_errors():
         stored = baselines.load(baseline) if baseline is not None else None
@@ -222,7 +222,7 @@ def suite(
             with user_errors():
                 measured.save(save_baseline)
         if stored is not None:
-            from scenarios.regression import compare
+            from scenarios.score.regression import compare
 
             comparison = compare(stored, measured)
     write_summary(cases, out / "suite.json", comparison)
@@ -237,7 +237,7 @@ def suite(
         console.print(f"wrote baseline {save_baseline}: {len({c.name for c in cases})} scenarios x {len(jobs) // max(len(sources), 1)} seeds"
                       + (f" ([bold red]{broken} runs failed[/]: their metrics are null)" if broken else ""), highlight=False)
     if comparison is not None:
-        from scenarios import compare as comparing
+        from scenarios.report import compare as comparing
 
         console.print(regression_table(comparison))
         page = comparing.write([out], out / "comparison", against=comparison)
@@ -255,7 +255,7 @@ def _as_baseline(fast: bool | None, stored, path: Path) -> bool:
 def _suite_jobs(sources: list[str], names: dict[str, str], seeds: int | None, stored, saving: bool, overrides: tuple[str, ...]) -> list:
     """The suite's runs: one per scenario as before, or per scenario and seed (a baseline's seeds when comparing)."""
     from scenarios import load
-    from scenarios.suite import Job, jobs_for
+    from scenarios.batch.suite import Job, jobs_for
 
     if stored is None and seeds is None and not saving:
         return jobs_for(sources, None, overrides)
@@ -292,11 +292,11 @@ def compare_baselines(
     """Compare two stored baselines without running anything; exit 1 when a metric regressed."""
     import json
 
-    from scenarios import baseline as baselines
-    from scenarios.atomic import atomic_path
-    from scenarios.regression import compare
-    from scenarios.suite import write_junit
-    from scenarios.summary import regression_table
+    from riverbench.atomic import atomic_path
+    from scenarios.batch.suite import write_junit
+    from scenarios.report.summary import regression_table
+    from scenarios.score import baseline as baselines
+    from scenarios.score.regression import compare
 
     with user_errors():
         a, b = baselines.load(base), baselines.load(new)
@@ -312,7 +312,7 @@ def compare_baselines(
             with atomic_path(json_out) as tmp:
                 tmp.write_text(json.dumps(comparison.as_dict(), indent=2) + "\n")
         if out is not None:
-            from scenarios import compare as comparing
+            from scenarios.report import compare as comparing
 
             console.print(f"comparison report: {comparing.write_against(comparison, out)}", highlight=False)
     console.print(regression_table(comparison))
@@ -347,9 +347,9 @@ def sweep(
     from datetime import datetime, timezone
 
     import scenarios
-    from scenarios import sweep as sweeping
-    from scenarios.sweep_plan import Axis, Range, SweepPlan
-    from scenarios.sweep_progress import SweepProgress, summary
+    from scenarios.batch import sweep as sweeping
+    from scenarios.batch.plan import Axis, Range, SweepPlan
+    from scenarios.batch.progress import SweepProgress, summary
 
     with user_errors():
         if backend not in ("local", "ray"):
@@ -357,7 +357,7 @@ def sweep(
         if address and backend != "ray":
             raise ValueError("--address is for --backend ray")
         if backend == "ray":
-            from scenarios.ray_backend import import_ray
+            from scenarios.batch.ray_backend import import_ray
 
             import_ray()
         count, ranges = sample
@@ -402,7 +402,7 @@ def report(
     """Compare estimators and matchers over runs: report.md and a self-contained report.html, ranked per scenario."""
     from datetime import datetime, timezone
 
-    from scenarios import compare
+    from scenarios.report import compare
 
     out = out or Path("runs") / f"report-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
     with user_errors():
@@ -467,9 +467,9 @@ def replay(
 ) -> None:
     """Run a scenario's matchers and estimators over a real recording (no truth): a run directory and a report."""
     from scenarios import load as load_scenario
-    from scenarios.progress import RunProgress
+    from scenarios.pipeline.progress import RunProgress
+    from scenarios.pipeline.runner import RunFailed, RunInterrupted
     from scenarios.replay import replay as replay_recording
-    from scenarios.runner import RunFailed, RunInterrupted
 
     with user_errors():
         if not recording.exists():
@@ -493,7 +493,7 @@ def replay(
 def scenarios_list() -> None:
     """Names and one-line descriptions of the library's scenarios."""
     import scenarios
-    from scenarios.library import read
+    from scenarios.spec.library import read
 
     table = Table(title="scenario library")
     table.add_column("name")
@@ -524,7 +524,7 @@ def schema() -> None:
     """The JSON Schema of a scenario file (for editors and validators)."""
     import json
 
-    from scenarios.schema import scenario_json_schema
+    from scenarios.spec.schema import scenario_json_schema
 
     print(json.dumps(scenario_json_schema(), indent=2))
 

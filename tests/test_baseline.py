@@ -10,10 +10,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from scenarios import baseline as baselines
 from scenarios.cli import app
-from scenarios.metrics import FAMILIES, family_of
-from scenarios.regression import NOISE_K, compare, judge
+from scenarios.score import baseline as baselines
+from scenarios.score.metrics import FAMILIES, family_of
+from scenarios.score.regression import NOISE_K, compare, judge
 
 runner = CliRunner()
 SEEDS = [0, 1, 2, 3, 4]

@@ -12,8 +12,8 @@ from analytic_worlds import ORIGIN, wall_world, water
 
 import scenarios
 import sim
-from scenarios.closed_loop import ClosedLoop
-from scenarios.vessel_log import VesselWatch
+from scenarios.pipeline.closed_loop import ClosedLoop
+from scenarios.score.vessel_log import VesselWatch
 from sim.autopilot import Autopilot
 from sim.clearance import HullClearance
 from sim.driven_trajectory import DrivenTrajectory

@@ -1,4 +1,4 @@
-"""The comparison report (scenarios.compare) on synthetic run directories written here with known numbers:
+"""The comparison report (scenarios.report.compare) on synthetic run directories written here with known numbers:
 two scenarios x two configurations (lidar.range_noise_m 0.02 / 0.05) x three seeds, bridge runs in a
 sweep layout and canal runs in suite layouts. ekf beats pf on APE p95 by more than the spread over
 seeds under the bridge and within it in the canal; pf fails in one bridge run and the icp matcher in
@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios import compare
-from scenarios.compare import groups
-from scenarios.compare.runs import RunInfo
+from scenarios.report import compare
+from scenarios.report.compare import groups
+from scenarios.report.compare.runs import RunInfo
 
 NOISES = (0.02, 0.05)
 SEEDS = (0, 1, 2)

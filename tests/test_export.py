@@ -21,7 +21,7 @@ import scenarios
 import scenarios.export as export_module
 from scenarios.export import FORMATS, export
 from scenarios.export.frames import open_stream
-from scenarios.library import path_of
+from scenarios.spec.library import path_of
 
 ONE_S = ["stretch={start_m = 3950.0, end_m = 3952.0}"]  # quickstart: 1 s, 10 scans
 CANAL_3S = ["stretch={start_m = 350.0, end_m = 356.0}"]  # canal_multipath: 3 s, 31 scans; walls, quays, the road bridge 30 m ahead

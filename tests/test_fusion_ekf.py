@@ -6,12 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from fusion_streams import StreamSpec, errors, generate, pose_at, run
 from scipy.stats import chi2
 
 import fusion
 from fusion.geometry import compose
-from fusion_streams import StreamSpec, errors, generate, pose_at, run
-
 
 EXACT_ODOMETRY = {"odom_floor_sigma_m": 0.0, "odom_floor_sigma_yaw_deg": 0.0, "odom_slip_frac": 0.0, "odom_slip_sigmas": 0.0}
 """The synthetic matcher's covariance is exact: no floor or slip allowance on top of it."""

@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from fusion_streams import Fault, StreamSpec, errors, generate, pose_at, run
 
 import fusion
-from fusion_streams import Fault, StreamSpec, errors, generate, pose_at, run
 
 
 def _initial(t_grid, poses, t=0.0):

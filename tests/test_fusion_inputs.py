@@ -7,9 +7,9 @@ import dataclasses
 
 import numpy as np
 import pytest
+from fusion_streams import StreamSpec, generate, run
 
 import fusion
-from fusion_streams import StreamSpec, generate, run
 from matcher.result import MatchResult
 
 

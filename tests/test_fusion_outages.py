@@ -17,7 +17,7 @@ import fusion
 import matcher
 import sim
 import worlds
-from scenarios.stream import drive
+from scenarios.pipeline.stream import drive
 from sim.gnss import GnssReceiver
 
 NAMES = ("gps_only", "hdop_switch", "ekf")

@@ -1,4 +1,4 @@
-"""scenarios.stream: lazy time-ordered scans and fixes from the simulator, and the drive helper."""
+"""scenarios.pipeline.stream: lazy time-ordered scans and fixes from the simulator, and the drive helper."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import fusion
 import matcher
 import sim
 import worlds
-from scenarios.stream import FixEvent, ScanEvent, drive, events
+from scenarios.pipeline.stream import FixEvent, ScanEvent, drive, events
 from sim.gnss import GnssReceiver
 
 

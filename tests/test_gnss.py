@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+import gnss_worlds as gw
 import numpy as np
 import pytest
 
-import gnss_worlds as gw
+from sim import wls
 from sim.gnss import GnssReceiver
 from sim.multipath import code_multipath_error
-from sim import wls
 
 
 def raw_noise_off(**more) -> GnssReceiver:

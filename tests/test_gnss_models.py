@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from datetime import timedelta
 
+import gnss_worlds as gw
 import numpy as np
 import pymap3d
 import pytest
+from analytic_worlds import wall_world
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-import gnss_worlds as gw
-from analytic_worlds import wall_world
 from sim import wls
 from sim.constellation import ALMANAC_EPOCH, INCLINATION, MEAN_MOTION, NODE_RATE, OMEGA_EARTH, RADIUS, Constellation
 from sim.geodesy import LocalFrame

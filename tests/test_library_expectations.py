@@ -1,6 +1,6 @@
 """The library's expectations are neither loose nor flaky: against each committed baseline (benchmarks/baseline/*.json),
 every seed's value passes its expectation, and no bound is looser than what the seeds' spread gives
-(scenarios.results.derived_bound). Widening a bound without a baseline that shows why fails here."""
+(scenarios.report.results.derived_bound). Widening a bound without a baseline that shows why fails here."""
 
 import math
 import operator
@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 import scenarios
-from scenarios import baseline as baselines
-from scenarios.results import EXPECTATION, derived_bound
+from scenarios.report.results import EXPECTATION, derived_bound
+from scenarios.score import baseline as baselines
 
 BASELINES = sorted((Path(__file__).resolve().parent.parent / "benchmarks" / "baseline").glob("*.json"))
 OPS = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge, "==": operator.eq, "!=": operator.ne}

@@ -1,10 +1,10 @@
 """HDL-32E model against analytic geometry and exact ground truth."""
 
 import numpy as np
-import pytest
 import open3d as o3d
-
+import pytest
 from analytic_worlds import cylinder_world, front_wall_world, ground_world, open_water_world, wall_world
+
 from sim.lidar import FIRING_CYCLE_S, HDL32E, HDL32E_ELEVATION_DEG, LASER_INTERVAL_S
 from sim.trajectory import Trajectory
 from worlds.materials import GLASS

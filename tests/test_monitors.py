@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from fusion_streams import Fault, StreamSpec, errors, generate, run
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -15,7 +16,6 @@ from fusion import monitors
 from fusion.monitors import FixContext
 from fusion.observation import FixObservation
 from fusion.odometry import OdometryTrack
-from fusion_streams import Fault, StreamSpec, errors, generate, run
 
 MULTIPATH = Fault(30.0, 40.0, (15.0, -8.0))
 BLACKOUT = Fault(50.0, 65.0, (0.0, 0.0), blackout=True)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import math
 from datetime import datetime, timedelta, timezone
 
+import gnss_worlds as gw
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import gnss_worlds as gw
 from sim import nmea
 from sim.gnss import GnssReceiver
 from sim.gnss_fix import GnssFix, SatelliteReport

@@ -10,21 +10,21 @@ sys.path and PYTHONPATH with the package's sources (spawned processes inherit bo
 import csv
 import json
 import os
+import tomllib
 from pathlib import Path
 
 import jsonschema
 import pytest
-import tomllib
 from typer.testing import CliRunner
 
 import fusion
 import matcher
+from scenarios.batch.suite import run_suite
 from scenarios.cli import app
-from scenarios.library import validate
-from scenarios.runner import run
-from scenarios.schema import scenario_json_schema
-from scenarios.spec import default_lists
-from scenarios.suite import run_suite
+from scenarios.pipeline.runner import run
+from scenarios.spec.library import validate
+from scenarios.spec.scenario import default_lists
+from scenarios.spec.schema import scenario_json_schema
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "riverbench_plugins"
 SCENARIO = EXAMPLE / "scenario.toml"

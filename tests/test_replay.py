@@ -19,12 +19,12 @@ from scipy.spatial.transform import Rotation
 import scenarios
 import sim
 import worlds
-from scenarios import files
 from scenarios.export import export
 from scenarios.export.ros_messages import header, typestore
-from scenarios.plots import read_csv
+from scenarios.pipeline import files
 from scenarios.replay import clouds, fixes, replay
 from scenarios.replay.recording import Geo, Place, unix_ns
+from scenarios.report.plots import read_csv
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix, SatelliteReport
 from sim.lidar import HDL32E_ELEVATION_DEG

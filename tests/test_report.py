@@ -1,4 +1,4 @@
-"""The run report (scenarios.report, scenarios.plots) on a small synthetic run directory written here
+"""The run report (scenarios.report.run_report, scenarios.report.plots) on a small synthetic run directory written here
 with numpy: straight-line truth, an estimator with a known 1 m offset, one that holds its last
 position through a GPS blackout, a scan matcher, one passing and one failing expectation."""
 
@@ -12,7 +12,7 @@ import re
 import numpy as np
 import pytest
 
-from scenarios import report
+from scenarios.report import run_report as report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PLOTS = ("map", "error", "hdop_error", "yaw", "matchers")

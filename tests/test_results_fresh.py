@@ -22,7 +22,7 @@ def test_generated_tables_are_those_of_the_committed_baseline():
 
 
 def test_the_generated_tables_are_stamped_with_the_baselines_commit_and_date():
-    from scenarios import baseline as baselines
+    from scenarios.score import baseline as baselines
 
     base = baselines.load(ROOT / "benchmarks" / "baseline" / "library.json")
     results = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+import gnss_worlds as gw
 import numpy as np
 import open3d as o3d
 import pytest
 import trimesh
 
-import gnss_worlds as gw
 import worlds
 from sim import HDL32E, Trajectory
 from sim.gnss import GnssReceiver

@@ -1,5 +1,5 @@
-"""Run metrics (scenarios.metrics), degradation windows (scenarios.windows), the recorder's odometry
-chaining (scenarios.record) and TUM files (scenarios.files) against independent computations on
+"""Run metrics (scenarios.score.metrics), degradation windows (scenarios.score.windows), the recorder's odometry
+chaining (scenarios.score.record) and TUM files (scenarios.pipeline.files) against independent computations on
 analytic trajectories: closed-form values or plain loops, never the function under test again."""
 
 from __future__ import annotations
@@ -14,9 +14,10 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from matcher.result import MatchResult
-from scenarios import files, metrics
-from scenarios import windows as win
-from scenarios.record import Column, FixTable, MatcherTrack, Recorder, RunRecord
+from scenarios.pipeline import files
+from scenarios.score import metrics
+from scenarios.score import windows as win
+from scenarios.score.record import Column, FixTable, MatcherTrack, Recorder, RunRecord
 
 FAST = settings(max_examples=40, deadline=None)
 STAT_KEYS = ("rmse", "mean", "median", "p95", "max")
@@ -775,7 +776,7 @@ def test_compute_tree_is_json_safe():
     est[:10] = np.nan
     fixes, *_ = monitor_case()
     rec = run_record(truth, {"e": est}, {"m": matcher_track(truth)}, fixes=fixes)
-    from scenarios import vessel_log
+    from scenarios.score import vessel_log
 
     tree = metrics.compute(rec, win.find(fixes, [], 0.2), {"scenario": "x", "seed": np.int64(1)},
                            vessel_log.metrics(vessel_log.VesselLog(), 3.0, 0.1))

@@ -12,9 +12,9 @@ import pytest
 import scenarios
 import sim
 import worlds
-from scenarios import files
-from scenarios.library import validate
-from scenarios.runner import RunFailed, RunInterrupted
+from scenarios.pipeline import files
+from scenarios.pipeline.runner import RunFailed, RunInterrupted
+from scenarios.spec.library import validate
 
 SHORT = ["stretch={start_s = 60.0, end_s = 90.0}"]  # canal_lock: walls on both sides, 30 s
 
@@ -86,7 +86,7 @@ def test_same_scenario_same_outputs_with_one_or_two_processes_and_from_the_resol
 
 
 def test_a_matcher_that_raises_fails_from_that_scan_on_and_the_run_goes_on(tmp_path, monkeypatch):
-    from scenarios import matcher_pool
+    from scenarios.pipeline import matcher_pool
 
     real_create = matcher_pool.matchers_pkg.create
 

@@ -9,9 +9,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import scenarios
-from scenarios import overrides
-from scenarios.expectations import Expectation
-from scenarios.library import validate
+from scenarios.score.expectations import Expectation
+from scenarios.spec import overrides
+from scenarios.spec.library import validate
 
 
 def test_every_library_scenario_loads_with_a_description():
@@ -131,8 +131,8 @@ def test_fast_variant_takes_its_stretch_and_expectations():
 def test_schema_types_every_section_and_each_kinds_params():
     import jsonschema
 
-    from scenarios.library import path_of
-    from scenarios.schema import scenario_json_schema
+    from scenarios.spec.library import path_of
+    from scenarios.spec.schema import scenario_json_schema
 
     schema = scenario_json_schema()
     assert {"world", "stretch", "vessel", "lidar", "gnss", "matchers", "estimators", "expect"} <= set(schema["properties"])

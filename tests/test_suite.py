@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 import scenarios
 from scenarios.cli import app
-from scenarios.library import validate
+from scenarios.spec.library import validate
 
 runner = CliRunner()
 ESTIMATOR_IN = re.compile(r"^estimators\.([A-Za-z_0-9]+)\.")

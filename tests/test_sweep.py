@@ -1,4 +1,4 @@
-"""Sweeps (scenarios.sweep*, `riverbench sweep`): the plan's expansion and its errors, the results table,
+"""Sweeps (scenarios.batch.sweep*, `riverbench sweep`): the plan's expansion and its errors, the results table,
 the local and Ray backends giving the same table, resuming after a kill, failed runs, the worker pool."""
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from scenarios import sweep as sweeping
-from scenarios import sweep_table
-from scenarios.library import load
-from scenarios.sweep_plan import Axis, Range, SweepPlan
-from scenarios.workers import run_jobs
+from scenarios.batch import sweep as sweeping
+from scenarios.batch import table as sweep_table
+from scenarios.batch.plan import Axis, Range, SweepPlan
+from scenarios.batch.workers import run_jobs
+from scenarios.spec.library import load
 
 SHORT = "stretch={start_s = 60.0, end_s = 70.0}"
 """10 s of the canal_multipath canyon: a run takes a few seconds."""
@@ -197,7 +197,7 @@ def test_a_failed_run_is_a_row_with_its_reason_and_the_sweep_goes_on(tmp_path):
     assert again.ran == 0
     retried = sweeping.run_sweep(plan, tmp_path / "s", workers=2, lean=True, retry_failed=True)
     assert retried.ran == 1 and retried.rows[1]["status"] == "failed"
-    from scenarios import compare  # the comparison report lists the failed run, which left no run directory
+    from scenarios.report import compare  # the comparison report lists the failed run, which left no run directory
 
     compare.write([tmp_path / "s"], tmp_path / "report")
     text = (tmp_path / "report" / "report.md").read_text()
@@ -304,7 +304,7 @@ def test_the_pool_survives_a_job_that_kills_its_worker_and_one_that_raises():
 
 
 def test_sweep_plots_draw_the_median_over_seeds(local_sweep):
-    from scenarios import sweep_plots
+    from scenarios.batch import sweep_plots
 
     lines = sweep_plots.lines(local_sweep.rows, ["matchers.gicp.ape_aligned.rmse"], "lidar.range_noise_m")
     assert len(lines) == 1 and lines[0].x == [0.01, 0.05]

@@ -12,7 +12,7 @@ from pydantic import ValidationError
 
 import scenarios
 import worlds
-from scenarios import files
+from scenarios.pipeline import files
 from sim.boats import BOATS, boat
 from sim.gnss import GnssReceiver
 from sim.lidar import HDL32E

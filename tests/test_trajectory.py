@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from analytic_worlds import wall_world
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from analytic_worlds import wall_world
 from sim.trajectory import Trajectory, yaw_pitch_roll_matrices
 from worlds.route import Route
 from worlds.world import World

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import scenarios
-from scenarios.atomic import atomic_path
+from riverbench.atomic import atomic_path
 from scenarios.export import kitti, pcap, pointfiles, rosbag
 from scenarios.export.frames import Frame, StreamInfo, open_stream
 

@@ -17,12 +17,12 @@ import numpy as np
 
 import sim
 import worlds
-from scenarios.feed import Feed
-from scenarios.matcher_pool import MatcherPool, MatcherSetup
-from scenarios.record import Recorder
-from scenarios.spec import Scenario
-from scenarios.stream import ScanEvent
-from scenarios.vessel_run import VesselRun
+from scenarios.pipeline.feed import Feed
+from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.stream import ScanEvent
+from scenarios.pipeline.vessel_run import VesselRun
+from scenarios.score.record import Recorder
+from scenarios.spec.scenario import Scenario
 from sim.gnss_fix import GnssFix
 from sim.scan import Scan
 

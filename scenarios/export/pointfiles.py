@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.export.frames import Frame, StreamInfo
-from scenarios.files import write_tum
+from scenarios.pipeline.files import write_tum
 
 RECORD = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("ring", "<u2"), ("time", "<f4")])
 PLY_TYPES = {"<f4": "float32", "<u2": "uint16"}

@@ -35,13 +35,13 @@ from pydantic import BaseModel, ConfigDict, Field
 
 import sim
 import worlds
-from scenarios.feed import Feed
 from scenarios.gym import observation
-from scenarios.matcher_pool import MatcherPool, MatcherSetup
-from scenarios.record import Recorder
-from scenarios.spec import Scenario
-from scenarios.stream import FixEvent, ScanEvent
-from scenarios.vessel_run import VesselRun
+from scenarios.pipeline.feed import Feed
+from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.stream import FixEvent, ScanEvent
+from scenarios.pipeline.vessel_run import VesselRun
+from scenarios.score.record import Recorder
+from scenarios.spec.scenario import Scenario
 from sim.autopilot import Autopilot
 from sim.compass import Compass, with_heading
 from sim.scan import POINT_DTYPE

@@ -19,10 +19,10 @@ from pathlib import Path
 from rosbags.highlevel import AnyReader
 
 from scenarios.export.ros_messages import typestore
-from scenarios.feed import BadScan
+from scenarios.pipeline.feed import BadScan
+from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import clouds, fixes
 from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, Place, RecordedFix, Recording, TimeOrder
-from scenarios.stream import ScanEvent
 
 CLOUD = "sensor_msgs/msg/PointCloud2"
 SENTENCE = "nmea_msgs/msg/Sentence"

@@ -1,7 +1,7 @@
 """What a replay can measure without truth, nested as its metrics.json.
 
 - `gps`: fixes, shares measured (GGA quality 1, 2, 4 or 5), valid (not 0) and dead reckoning (6), median HDOP.
-- `matchers.<id>`: success, gated, degenerate, hz, ms, points, failed (as scenarios.metrics counts them).
+- `matchers.<id>`: success, gated, degenerate, hz, ms, points, failed (as scenarios.score.metrics counts them).
 - `estimators.<id>`: available (share of scans with a pose), failed, and `against_gps`: the
   horizontal distance from the estimate's antenna (base_link pose times the scenario's antenna
   offset, interpolated between the scans around each fix) to every measured fix its own monitor
@@ -17,8 +17,8 @@ import math
 import numpy as np
 
 from fusion.observation import DEAD_RECKONING, POSITION_QUALITIES
-from scenarios import metrics
-from scenarios.record import FixTable, RunRecord
+from scenarios.score import metrics
+from scenarios.score.record import FixTable, RunRecord
 
 MATCHER_KEYS = ("success", "gated", "degenerate", "hz", "ms", "points", "failed", "failed_at")
 """The matcher metrics that need no truth."""

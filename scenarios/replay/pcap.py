@@ -21,9 +21,9 @@ import dpkt
 import numpy as np
 import velodyne_decoder as vd
 
+from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import fixes
 from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, Place, RecordedFix, Recording, TimeOrder, unix_ns
-from scenarios.stream import ScanEvent
 from sim import nmea
 from sim.lidar import HDL32E_ELEVATION_DEG
 from sim.scan import POINT_DTYPE, Scan

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 
-from scenarios.feed import BadScan
-from scenarios.stream import ScanEvent
+from scenarios.pipeline.feed import BadScan
+from scenarios.pipeline.stream import ScanEvent
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix
 

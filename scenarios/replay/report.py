@@ -1,4 +1,4 @@
-"""A replay's report: report.md, report.html and plots/map.png from its run directory, in the blocks and renderers of scenarios.report.
+"""A replay's report: report.md, report.html and plots/map.png from its run directory, in the blocks and renderers of scenarios.report.run_report.
 
 There is no truth: the estimators are compared with the GPS fixes their own monitors trusted
 (a reference with its own error), the matchers by what they report about themselves.
@@ -12,10 +12,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from scenarios import plots
-from scenarios import report as run_report
-from scenarios.atomic import atomic_path
-from scenarios.report import Cell, Column, Heading, Table, Text, get, metres, num, share
+from riverbench.atomic import atomic_path
+from scenarios.report import document, plots, run_report
+from scenarios.report.document import Cell, Column, Heading, Table, Text, get, metres, num, share
 
 MAP = "plots/map.png"
 MAP_CAPTION = ("The recording in the world's ENU frame: GPS fixes (grey: measured, brown: dead reckoning), each estimate, "
@@ -39,7 +38,7 @@ def write(run_dir: Path) -> None:
     images = {MAP: MAP_CAPTION} if draw_map(run_dir, tree) else {}
     blocks = build(tree, images)
     title = f"riverbench replay: {Path(tree['run']['recording']['path']).name}"
-    for name, text in (("report.md", run_report.to_markdown(blocks)), ("report.html", run_report.to_html(blocks, run_dir, title))):
+    for name, text in (("report.md", document.to_markdown(blocks)), ("report.html", document.to_html(blocks, run_dir, title))):
         with atomic_path(run_dir / name) as tmp:
             tmp.write_text(text, encoding="utf-8")
 
@@ -53,14 +52,14 @@ def build(tree: dict, images: dict[str, str]) -> list:
         note = ("No truth: horizontal distance (m) from each estimate's antenna, interpolated to the fix time, to the measured GPS "
                 "fixes its own monitor trusted (their share: trusted fixes). GPS has its own error: this is agreement with it, "
                 "not accuracy.")
-        blocks += [Heading(2, "Estimators against GPS"), run_report.ranked_table("estimator", estimators, ESTIMATOR_COLUMNS,
+        blocks += [Heading(2, "Estimators against GPS"), document.ranked_table("estimator", estimators, ESTIMATOR_COLUMNS,
                                                                                  labels(estimators), note)]
     blocks += [*run_report.figures(ctx, "map"), *gps(tree.get("gps", {}))]
     matchers = tree.get("matchers", {})
     if matchers:
         note = ("Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; degenerate: "
                 "usable matches with an unobserved direction.")
-        blocks += [Heading(2, "Scan matchers"), run_report.ranked_table("matcher", matchers, MATCHER_COLUMNS, labels(matchers), note)]
+        blocks += [Heading(2, "Scan matchers"), document.ranked_table("matcher", matchers, MATCHER_COLUMNS, labels(matchers), note)]
     return blocks
 
 

@@ -1,7 +1,7 @@
 """`replay(recording, scenario, out_dir)`: a scenario's matchers and estimators over a real recording, no truth.
 
 The recording (a rosbag2 or ROS 1 bag, or a Velodyne HDL-32E pcap) gives the scans and fixes in
-time order; scenarios.feed runs them through the scenario's matchers and estimators with the calls
+time order; scenarios.pipeline.feed runs them through the scenario's matchers and estimators with the calls
 of a simulated run. Everything the scenario says about the world and the sensors' simulation is
 unused, except the world's geodetic origin (the ENU frame), the GNSS epoch (the time base) and the
 boat's configuration (lidar mount, antenna offset). Matcher odometry is chained from identity at
@@ -32,18 +32,19 @@ from scipy.spatial.transform import Rotation
 
 import scenarios
 import worlds
-from scenarios import files, provenance
-from scenarios.provenance import peak_rss_mb
-from scenarios import metrics as run_metrics
+from riverbench import provenance
+from riverbench.provenance import peak_rss_mb
 from scenarios.export import check_out, staged_dir
-from scenarios.feed import Feed
-from scenarios.matcher_pool import MatcherPool, MatcherSetup
-from scenarios.record import Recorder, RunRecord
+from scenarios.pipeline import files
+from scenarios.pipeline.feed import Feed
+from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import bag, pcap
 from scenarios.replay import metrics as replay_metrics
 from scenarios.replay.recording import Place, Recording
-from scenarios.spec import Scenario
-from scenarios.stream import ScanEvent
+from scenarios.score import metrics as run_metrics
+from scenarios.score.record import Recorder, RunRecord
+from scenarios.spec.scenario import Scenario
 
 PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
 """libpcap file magic numbers (microsecond and nanosecond, either byte order)."""

@@ -1,0 +1,168 @@
+"""What a sweep runs: `--grid`, `--sample` and `--seeds` over scenarios, expanded into validated runs.
+
+Every point is a scenario file plus `--set`-style overrides and a seed, loaded (so an unknown key or
+a bad value fails before anything runs) and identified by its resolved scenario's hash.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from scenarios.spec import overrides
+from scenarios.spec.library import load
+
+
+@dataclass(frozen=True)
+class Axis:
+    """A grid axis: a scenario key and the values it takes."""
+
+    key: str
+    values: tuple
+
+    @staticmethod
+    def parse(text: str) -> "Axis":
+        """'key=v1,v2,...' with TOML values (bare words are strings; commas inside [] and {} do not split)."""
+        key, sep, raw = text.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"--grid {text!r}: write key=v1,v2,... e.g. lidar.range_noise_m=0.01,0.02")
+        values = tuple(overrides.parse_value(v.strip()) for v in _split_top_level(raw) if v.strip())
+        if not values:
+            raise ValueError(f"--grid {key}: no values (write {key}=v1,v2,...)")
+        return Axis(key, values)
+
+
+@dataclass(frozen=True)
+class Range:
+    """A sampled key: uniform in [lo, hi] (integers when both bounds are), or log-uniform with ':log'."""
+
+    key: str
+    lo: float
+    hi: float
+    log: bool = False
+    integer: bool = False
+
+    @staticmethod
+    def parse(text: str) -> "Range":
+        """'key=lo:hi' or 'key=lo:hi:log'."""
+        key, sep, raw = text.partition("=")
+        key, parts = key.strip(), raw.strip().split(":")
+        usage = f"--sample N {key or 'key'}=lo:hi (or lo:hi:log), e.g. lidar.range_noise_m=0.01:0.05"
+        if not sep or not key or len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] != "log"):
+            raise ValueError(f"--sample {text!r}: write {usage}")
+        bounds = [overrides.parse_value(p.strip()) for p in parts[:2]]
+        if not all(isinstance(b, (int, float)) and not isinstance(b, bool) and math.isfinite(b) for b in bounds):
+            raise ValueError(f"--sample {key}: bounds must be finite numbers (got {parts[0]!r}, {parts[1]!r})")
+        lo, hi = bounds
+        log = len(parts) == 3
+        if not lo < hi:
+            raise ValueError(f"--sample {key}: lo must be below hi (got {lo} .. {hi})")
+        if log and lo <= 0:
+            raise ValueError(f"--sample {key}: a log-uniform range needs lo > 0 (got {lo})")
+        return Range(key, lo, hi, log, integer=not log and isinstance(lo, int) and isinstance(hi, int))
+
+    def draw(self, rng: np.random.Generator, n: int) -> list:
+        """n values (Python ints or floats, so they render exactly as TOML)."""
+        if self.integer:
+            return [int(v) for v in rng.integers(int(self.lo), int(self.hi), size=n, endpoint=True)]
+        if self.log:
+            return [float(v) for v in np.exp(rng.uniform(math.log(self.lo), math.log(self.hi), size=n))]
+        return [float(v) for v in rng.uniform(self.lo, self.hi, size=n)]
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One run of a sweep: where its scenario comes from, the overrides and seed, and what identifies it."""
+
+    index: int
+    source: str
+    assignments: tuple[str, ...]
+    seed: int
+    params: dict
+    name: str
+    hash: str
+
+    @property
+    def run_name(self) -> str:
+        """Its run directory's name: unique in a sweep (the hash covers the seed and every override)."""
+        return f"{self.name}-{self.hash}"
+
+
+@dataclass(frozen=True)
+class SweepPlan:
+    """Scenarios x grid (cartesian) x samples (joint draws) x seeds, with fixed overrides for every run."""
+
+    sources: tuple[str, ...]
+    grid: tuple[Axis, ...] = ()
+    ranges: tuple[Range, ...] = ()
+    samples: int = 0
+    seeds: int = 1
+    fixed: tuple[str, ...] = ()
+    sample_seed: int = 0
+    keys: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        keys = [a.key for a in self.grid] + [r.key for r in self.ranges]
+        for key in keys:
+            if keys.count(key) > 1:
+                raise ValueError(f"{key}: swept twice (give each key once, in --grid or in --sample)")
+        if not self.sources:
+            raise ValueError("no scenario to sweep: name one or more library scenarios or .toml files")
+        if self.seeds < 1:
+            raise ValueError(f"--seeds: at least 1 (got {self.seeds})")
+        if self.ranges and self.samples < 1:
+            raise ValueError(f"--sample: at least 1 sample (got {self.samples})")
+        if not keys and self.seeds == 1:
+            raise ValueError("nothing to sweep: give --grid key=v1,v2, --sample N key=lo:hi or --seeds N (N > 1)")
+        if "seed" in keys and self.seeds > 1:
+            raise ValueError("seed: swept by --grid and repeated by --seeds; use one of them")
+        object.__setattr__(self, "keys", tuple(keys))
+
+    def combinations(self) -> list[dict]:
+        """Each combination of swept values: the grid's cartesian product times the joint samples."""
+        grid = [dict(zip([a.key for a in self.grid], values)) for values in itertools.product(*(a.values for a in self.grid))]
+        if not self.ranges:
+            return grid
+        rng = np.random.default_rng(self.sample_seed)
+        drawn = {r.key: r.draw(rng, self.samples) for r in self.ranges}
+        samples = [{key: drawn[key][i] for key in drawn} for i in range(self.samples)]
+        return [{**g, **s} for g in grid for s in samples]
+
+    def points(self) -> list[SweepPoint]:
+        """Every run, validated (a bad key or value raises ValueError naming it), duplicates dropped."""
+        points: list[SweepPoint] = []
+        seen: set[str] = set()
+        for source in self.sources:
+            for params in self.combinations():
+                assignments = (*self.fixed, *(overrides.assignment(k, v) for k, v in params.items()))
+                base_seed = load(source, set=list(assignments)).seed
+                for seed in range(base_seed, base_seed + self.seeds):
+                    scenario = load(source, set=list(assignments), seed=seed)
+                    if scenario.hash in seen:
+                        continue
+                    seen.add(scenario.hash)
+                    points.append(SweepPoint(len(points), source, assignments, seed, params, scenario.name, scenario.hash))
+        return points
+
+
+def _split_top_level(text: str) -> list[str]:
+    """Split at commas outside brackets, braces and quotes."""
+    parts, depth, quote, start = [], 0, "", 0
+    for i, ch in enumerate(text):
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    parts.append(text[start:])
+    return parts

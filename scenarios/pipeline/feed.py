@@ -1,0 +1,175 @@
+"""The streaming loop of a run: scans and fixes in time order through the scenario's matchers and estimators into a Recorder.
+
+`scenarios.run` feeds it simulated events, `scenarios.replay` recorded ones. Each scan goes to
+every matcher (a MatcherPool, so the next scan can be read or simulated while one is matched,
+LOOKAHEAD_SCANS ahead), then in time order each estimator gets `add_match(stamp, result)` of its own matcher and gives its pose; each
+fix goes to every estimator's `add_fix`, which returns the monitor's verdict. A component that
+raises, or answers with something else than a 4x4 pose or a Verdict, is recorded as failed from
+that input on and the rest goes on. A scan the recording could not give (BadScan) is a recorded
+failure too.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TextIO
+
+import numpy as np
+
+from fusion.verdict import Verdict
+from scenarios.pipeline.matcher_pool import MatcherPool
+from scenarios.pipeline.stream import ScanEvent
+from scenarios.score.record import Recorder, nan_pose
+from scenarios.spec.scenario import Scenario
+
+LOOKAHEAD_SCANS = 1
+"""Scans read or simulated ahead of the one being matched (the overlap of reading or simulation and matching)."""
+
+
+@dataclass(frozen=True)
+class BadScan:
+    """A scan the recording holds but that could not be read (`source`: where it came from)."""
+
+    stamp: float
+    source: str
+    reason: str
+
+
+class RunFailed(RuntimeError):
+    """The run could not go on (the simulation or the recording failed); nothing was written."""
+
+
+class RunInterrupted(RuntimeError):
+    """Ctrl-C: the run stopped cleanly; nothing was written."""
+
+
+class Feed:
+    """drive(events), or push(event) for each event in time order then finish(); `recorder` holds what came out."""
+
+    def __init__(self, scenario: Scenario, pool: MatcherPool, recorder: Recorder, base_pose: Callable[[float], np.ndarray],
+                 nmea: TextIO, sentences: Callable[[object], list[str]], t_start: float) -> None:
+        self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
+        self.nmea, self.sentences = nmea, sentences
+        self.feeds = {e.id: e.matcher for e in scenario.estimators}
+        self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
+        self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
+        self.queue: deque = deque()
+        self.scans = 0
+
+    def pose_of(self, estimator_id: str) -> np.ndarray:
+        """An estimator's current pose (NaN when it failed or gives something else than a 4x4 pose)."""
+        if estimator_id in self.dead:
+            return nan_pose()
+        try:
+            return checked_pose(self.estimators[estimator_id].pose)
+        except Exception:  # a plugin's pose may raise anything: steering sees an unknown pose, the scan step records the failure
+            return nan_pose()
+
+    def push(self, event) -> None:
+        """Take the next event (ScanEvent, BadScan, or a fix event with `.fix`) and process what is due."""
+        if isinstance(event, BadScan):
+            self.recorder.failure("scan", event.source, event.stamp, event.reason)
+            return
+        self.queue.append(event)
+        if isinstance(event, ScanEvent):
+            self.pool.submit(event.scan)
+            self.scans += 1
+        self._drain(LOOKAHEAD_SCANS)
+
+    def finish(self) -> None:
+        """Process every pending event."""
+        self._drain(0)
+
+    def drive(self, events, on_event: Callable[[object], None], failures: tuple[type[Exception], ...], where: str = "") -> None:
+        """Push every event and finish; Ctrl-C becomes RunInterrupted and a `failures` exception RunFailed, both naming the scan and time."""
+        now = math.nan
+        try:
+            for event in events:
+                now = event.stamp
+                self.push(event)
+                on_event(event)
+            self.finish()
+        except KeyboardInterrupt:
+            raise RunInterrupted(f"interrupted at t={now:.1f} s (scan {self.scans}); nothing written") from None
+        except failures as exc:
+            raise RunFailed(f"{where}scan {self.scans} at t={now:.2f} s: {exc}") from None
+
+    def _drain(self, keep_scans: int) -> None:
+        """Process queued events in order while more than `keep_scans` scans are queued, then the fixes at the front."""
+        while self.queue and sum(isinstance(e, ScanEvent) for e in self.queue) > keep_scans:
+            event = self.queue.popleft()
+            if isinstance(event, ScanEvent):
+                self._scan(event, *self.pool.collect())
+            else:
+                self._fix(event)
+        while self.queue and not isinstance(self.queue[0], ScanEvent):
+            self._fix(self.queue.popleft())
+
+    def _each_estimator(self, call: Callable[[str, object], object], stamp: float) -> dict:
+        """call(id, estimator) for every live estimator; one that raises is failed from here on."""
+        out = {}
+        for eid, est in self.estimators.items():
+            if eid in self.dead:
+                continue
+            try:
+                out[eid] = call(eid, est)
+            except Exception as exc:  # an estimator that raises fails from this input on; the run goes on
+                self.dead.add(eid)
+                self.recorder.failure("estimator", eid, stamp, f"{self.refs[eid]}: {type(exc).__name__}: {exc}")
+        return out
+
+    def _scan(self, event: ScanEvent, results: dict, errors: dict) -> None:
+        """The matchers' results of one scan to the estimators, then into the record."""
+        for mid, why in errors.items():
+            self.recorder.failure("matcher", mid, event.stamp, f"{self.refs[mid]}: {why}")
+
+        def step(eid: str, est) -> np.ndarray:
+            """Feed one estimator its matcher's result (none for gps_only) and read its pose."""
+            if self.feeds[eid]:
+                est.add_match(event.stamp, results[self.feeds[eid]])
+            return checked_pose(est.pose)
+
+        poses = self._each_estimator(step, event.stamp)
+        self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
+
+    def _fix(self, event) -> None:
+        """One fix to every estimator, its verdicts into the record, its sentences to the NMEA log."""
+        fix = event.fix
+        verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp)
+        # a failed estimator raises no alarm: its fixes count as trusted with no statistic
+        self.recorder.fix(fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan)
+                                for eid in self.estimators})
+        lines = self.sentences(event)
+        if lines:
+            self.nmea.write("\r\n".join(lines) + "\r\n")
+
+
+def build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:
+    """Every estimator by id, and the ids of those whose constructor raised (recorded as failed from the start)."""
+    estimators, dead = {}, set()
+    for spec in scenario.estimators:
+        try:
+            estimators[spec.id] = spec.build(scenario.seed)
+        except Exception as exc:  # a plugin's constructor may raise anything: that estimator fails, the run goes on
+            estimators[spec.id] = None
+            dead.add(spec.id)
+            recorder.failure("estimator", spec.id, t_start, f"{spec.ref}: could not be built: {type(exc).__name__}: {exc}")
+    return estimators, dead
+
+
+def checked_pose(pose) -> np.ndarray:
+    """An estimator's pose as a 4x4 float array, or a TypeError (a plugin's may be anything)."""
+    matrix = np.asarray(pose, dtype=float)
+    if matrix.shape != (4, 4):
+        raise TypeError(f"pose has shape {matrix.shape}, not (4, 4)")
+    return matrix
+
+
+def checked_verdict(verdict) -> Verdict:
+    """What add_fix returned, if it is a fusion Verdict, or a TypeError (a plugin's may be anything)."""
+    if not isinstance(verdict, Verdict):
+        raise TypeError(f"add_fix returned a {type(verdict).__name__}, not a fusion.Verdict")
+    return verdict

@@ -1,0 +1,121 @@
+"""The run directory's data files: TUM trajectories, gps.csv, windows.csv, scans.csv, movers.csv.
+
+TUM lines are 'timestamp tx ty tz qx qy qz qw' (world ENU, base_link, unit quaternion), the format
+evo and the TUM RGB-D tools read; a pose the estimator did not have yet (before initialisation) is
+left out, so every row is a real estimate.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from scenarios.pipeline.traffic_log import TrafficLog
+from scenarios.score import windows as win
+from scenarios.score.record import RunRecord
+
+TUM_HEADER = "# timestamp tx ty tz qx qy qz qw\n"
+
+
+def write_tum(path: Path, t: np.ndarray, poses: np.ndarray) -> int:
+    """Write the finite poses (N, 4, 4) at times t; returns the number of rows."""
+    ok = np.isfinite(poses).all(axis=(1, 2))
+    rows = np.zeros((int(ok.sum()), 8))
+    if ok.any():
+        rows[:, 0] = t[ok]
+        rows[:, 1:4] = poses[ok, :3, 3]
+        rows[:, 4:8] = Rotation.from_matrix(poses[ok, :3, :3]).as_quat()
+    with open(path, "w") as f:
+        f.write(TUM_HEADER)
+        np.savetxt(f, rows, fmt=["%.6f"] + ["%.6f"] * 3 + ["%.9f"] * 4)
+    return len(rows)
+
+
+def read_tum(path: Path) -> np.ndarray:
+    """(N, 8) rows of a TUM file ((0, 8) when it holds only the header, e.g. an estimator that never initialised)."""
+    rows = [line.split() for line in Path(path).read_text().splitlines() if line.strip() and not line.startswith("#")]
+    return np.array(rows, dtype=float).reshape(-1, 8)
+
+
+def write_gps_csv(path: Path, rec: RunRecord, truth: bool = True) -> None:
+    """One row per fix: time, reported position, quality, DOP, the true error (not when `truth` is False: a replay
+    has none), and each estimator's verdict."""
+    f = rec.fixes
+    eids = list(f.trusted)
+    header = ["t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop"]
+    header += ["err_e", "err_n", "err_u", "err_h", "open_sky_err_h", "added_err_h", "nlos_used"] if truth else []
+    header += [f"{e}.{k}" for e in eids for k in ("trusted", "statistic")]
+    err_h, added = f.horizontal_error, f.added_error
+    open_sky = np.hypot(f.open_sky_error[:, 0], f.open_sky_error[:, 1]) if len(f.t) else np.zeros(0)
+    with open(path, "w", newline="") as handle:
+        w = csv.writer(handle)
+        w.writerow(header)
+        for i in range(len(f.t)):
+            row = [f"{f.t[i]:.3f}", int(f.quality[i]), *_fmt(f.enu[i], 3), _fmt1(f.lat[i], 9), _fmt1(f.lon[i], 9),
+                   _fmt1(f.alt[i], 3), int(f.num_sats[i]), _fmt1(f.hdop[i], 2)]
+            if truth:
+                row += [*_fmt(f.error[i], 3), _fmt1(err_h[i], 3), _fmt1(open_sky[i], 3), _fmt1(added[i], 3), int(f.nlos_used[i])]
+            for e in eids:
+                row += [int(f.trusted[e][i]), _fmt1(f.statistic[e][i], 4)]
+            w.writerow(row)
+
+
+def write_windows_csv(path: Path, windows: list[win.Window], rec: RunRecord, errors: dict[str, np.ndarray]) -> None:
+    """One row per degradation window with each estimator's passage through it."""
+    keys = ("max_error", "entry_error", "exit_error", "added", "recover_s")
+    with open(path, "w", newline="") as handle:
+        w = csv.writer(handle)
+        w.writerow(["kind", "start", "end", "duration"] + [f"{e}.{k}" for e in errors for k in keys])
+        for window in windows:
+            row = [window.kind, f"{window.start:.3f}", f"{window.end:.3f}", f"{window.duration:.3f}"]
+            for error in errors.values():
+                p = win.passage(window, rec.scan_t, error)
+                row += [_fmt1(getattr(p, k), 3) for k in keys]
+            w.writerow(row)
+
+
+def write_scans_csv(path: Path, rec: RunRecord) -> None:
+    """One row per scan: the true pose (x, y, z, yaw) and per matcher ok, gated, degenerate, points, ms."""
+    mids = list(rec.matches)
+    with open(path, "w", newline="") as handle:
+        w = csv.writer(handle)
+        w.writerow(["t", "x", "y", "z", "yaw_deg"] + [f"{m}.{k}" for m in mids for k in ("ok", "gated", "degenerate", "points", "ms")])
+        yaw = np.degrees(np.arctan2(rec.truth[:, 1, 0], rec.truth[:, 0, 0])) if len(rec.scan_t) else np.zeros(0)
+        for i, t in enumerate(rec.scan_t):
+            row = [f"{t:.3f}", *_fmt(rec.truth[i, :3, 3], 3), f"{yaw[i]:.3f}"]
+            for m in mids:
+                track = rec.matches[m]
+                row += [int(track.ok[i]), int(track.gated[i]), int(track.degenerate[i]), int(track.points[i]), f"{1e3 * track.seconds[i]:.2f}"]
+            w.writerow(row)
+
+
+def write_vessel_csv(path: Path, log) -> None:
+    """One row per control period (a revolution): the true plane pose, station, cross-track, clearance, nearest part, commands."""
+    with open(path, "w", newline="") as handle:
+        w = csv.writer(handle)
+        w.writerow(["t", "x", "y", "yaw_deg", "station_m", "cross_track_m", "clearance_m", "nearest_part", "cmd_left", "cmd_right"])
+        for t, x, y, yaw, station, cross, clearance, part, left, right in log.rows:
+            w.writerow([f"{t:.3f}", *_fmt((x, y), 3), f"{np.degrees(yaw):.3f}", *_fmt((station, cross, clearance), 3), part,
+                        *_fmt((left, right), 4)])
+
+
+def write_movers_csv(path: Path, log: TrafficLog) -> None:
+    """One row per scan and mover: t, id, the mover's LiDAR label, x, y (world ENU, m), yaw (deg from east)."""
+    with open(path, "w", newline="") as handle:
+        w = csv.writer(handle)
+        w.writerow(["t", "id", "label", "x", "y", "yaw_deg"])
+        for t, poses in zip(log.stamps, log.poses):
+            for m, (mid, p) in enumerate(zip(log.traffic.ids, poses)):
+                w.writerow([f"{t:.3f}", mid, log.first_label + m, f"{p[0, 3]:.3f}", f"{p[1, 3]:.3f}",
+                            f"{np.degrees(np.arctan2(p[1, 0], p[0, 0])):.3f}"])
+
+
+def _fmt1(value: float, digits: int) -> str:
+    return "" if not np.isfinite(value) else f"{value:.{digits}f}"
+
+
+def _fmt(values, digits: int) -> list[str]:
+    return [_fmt1(float(v), digits) for v in values]

@@ -1,0 +1,164 @@
+"""`scenarios.run(scenario, out_dir)` (scenarios.pipeline.runner.run): stream a scenario through the matchers and estimators under
+test, score them against the exact truth and write the run directory.
+
+Streaming: each revolution is simulated, handed to the matchers (in worker processes, so the next
+revolution is ray cast while this one is matched), fed to the estimators with the fixes in time
+order, reduced to a few numbers and dropped; memory stays flat in scenario length. The directory is
+written under a temporary name and renamed at the end: a run that fails or is interrupted leaves
+nothing behind and says at which scan and why.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import tomli_w
+
+import sim
+import worlds
+from riverbench import provenance
+from riverbench.provenance import peak_rss_mb
+from scenarios.pipeline import files
+from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
+from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.traffic_log import TrafficLog
+from scenarios.pipeline.vessel_run import VesselRun
+from scenarios.score import metrics, vessel_log
+from scenarios.score import windows as win
+from scenarios.score.expectations import Outcome
+from scenarios.score.record import Recorder, RunRecord
+from scenarios.spec.scenario import Scenario
+
+RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
+"""The numbers of metrics.json's `run` node (besides scenario, scenario_hash, lanes and failures)."""
+
+
+@dataclass
+class RunResult:
+    """A finished run: where it is, its metrics tree and each expectation's outcome."""
+
+    scenario: Scenario
+    out_dir: Path
+    metrics: dict
+    outcomes: list[Outcome] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return all(o.passed for o in self.outcomes)
+
+    @property
+    def report(self) -> Path:
+        return self.out_dir / "report.html"
+
+
+def default_out_dir(scenario: Scenario) -> Path:
+    """runs/<scenario>-<UTC time>/"""
+    return Path("runs") / f"{scenario.name}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+
+
+def run(
+    scenario: Scenario,
+    out_dir: str | os.PathLike | None = None,
+    *,
+    workers: int = 2,
+    report: bool = True,
+    progress: Callable[[float, float, float, int], None] | None = None,
+) -> RunResult:
+    """Run `scenario` and write its run directory (default runs/<name>-<UTC time>/).
+
+    workers: processes in use (1: everything in this process; 2, the default: matchers overlap
+    with the simulation). report: also write report.md, report.html and plots/. progress, if
+    given, is called as progress(t, t_start, t_end, scans) after each event.
+    """
+    out = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"output directory {out} exists and is not empty")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        metrics_tree, outcomes = _run_into(scenario, tmp, workers, report, progress)
+        os.chmod(tmp, 0o755)  # mkdtemp made it private; a run directory is for everyone to read
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return RunResult(scenario, out, metrics_tree, outcomes)
+
+
+def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progress) -> tuple[dict, list[Outcome]]:
+    wall_start = time.perf_counter()
+    world = worlds.load(scenario.world, **scenario.world_params)
+    vessel = scenario.vessel.model_dump(exclude={"seed"})
+    planned = sim.Trajectory(world, seed=scenario.seed, **vessel)
+    lidar = sim.HDL32E(seed=scenario.seed, **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
+                       rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
+    receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
+    t_start, t_end = scenario.stretch.times(planned)
+    vessel_run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
+    trajectory = vessel_run.trajectory
+    traffic_log = TrafficLog(vessel_run.world)
+    recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], trajectory.mount)
+    setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
+    with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
+        feed = Feed(scenario, pool, recorder, trajectory.pose, nmea, lambda event: event.fix.nmea(), t_start)
+        feed.drive(traffic_log.tap(vessel_run.events(feed)),
+                   lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
+                   (ValueError, RuntimeError, FloatingPointError))
+        pool.close()
+        workers_rss = pool.workers_rss_mb
+        lanes = pool.lanes
+    rec = recorder.finish([(w.start_s, w.end_s) for w in scenario.gnss.forced_biases])
+    wall = time.perf_counter() - wall_start
+    t_last = float(rec.scan_t[-1]) + lidar.revolution_s if len(rec.scan_t) else t_start
+    sim_s = t_last - t_start
+    run_info = {
+        "scenario": scenario.name, "scenario_hash": scenario.hash, "seed": scenario.seed,
+        "t_start": t_start, "t_end": t_last, "sim_s": sim_s, "wall_s": wall,
+        "realtime_factor": sim_s / wall if wall > 0 else math.nan,
+        "peak_rss_mb": peak_rss_mb() + workers_rss,
+        "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes,
+        "failures": rec.failures,
+    }
+    if traffic_log.traffic:
+        run_info["mover_points"] = traffic_log.metrics()
+        files.write_movers_csv(tmp / "movers.csv", traffic_log)
+    vessel_node = vessel_log.metrics(vessel_run.watch.log, scenario.control.clearance_threshold_m, lidar.revolution_s)
+    files.write_vessel_csv(tmp / "vessel.csv", vessel_run.watch.log)
+    return _write(scenario, tmp, rec, run_info, vessel_node, 1.0 / receiver.rate_hz, report)
+
+
+def _write(scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel: dict, fix_period: float,
+           report: bool) -> tuple[dict, list[Outcome]]:
+    windows = win.find(rec.fixes, rec.injected, fix_period)
+    tree = metrics.compute(rec, windows, run_info, vessel)
+    safe = metrics.json_safe(tree)
+    outcomes = [e.check(safe) for e in scenario.expectations()]
+    safe["expectations"] = [o.as_dict() for o in outcomes]
+    safe = {"provenance": provenance.collect(), **safe}
+    (tmp / "scenario.toml").write_text(f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
+                                       + tomli_w.dumps(scenario.resolved()))
+    (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")
+    files.write_tum(tmp / "groundtruth.tum", rec.scan_t, rec.truth)
+    for eid, poses in rec.estimates.items():
+        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)
+    for mid, track in rec.matches.items():
+        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
+    files.write_gps_csv(tmp / "gps.csv", rec)
+    errors = {eid: metrics.horizontal_error(p, rec.truth) for eid, p in rec.estimates.items()}
+    files.write_windows_csv(tmp / "windows.csv", windows, rec, errors)
+    files.write_scans_csv(tmp / "scans.csv", rec)
+    if report:
+        from scenarios.report import run_report as report_module
+
+        report_module.write(tmp, scenario=scenario)
+    return safe, outcomes

@@ -1,0 +1,75 @@
+"""How the vessel moves in a run, as the scenario's `[control]` says: the planned route (open loop)
+or the WAM-V model steered by the autopilot on an estimator's pose (closed loop)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.pipeline.closed_loop import ClosedLoop, autopiloted, watched
+from scenarios.pipeline.stream import events as planned_events
+from scenarios.score.vessel_log import VesselWatch
+from scenarios.spec.scenario import Scenario
+from sim.autopilot import Autopilot
+from sim.clearance import HullClearance
+from sim.compass import Compass, with_heading
+from sim.driven_trajectory import DrivenTrajectory
+from sim.scene import Scene
+from sim.traffic import build_traffic
+from sim.trajectory import Trajectory
+from sim.vessel import hull_mesh
+
+
+@dataclass
+class VesselRun:
+    """The trajectory the sensors see, the watch that logs clearance, and the events of the run."""
+
+    scenario: Scenario
+    world: object  # what the sensors see: a sim.Scene, the world and its traffic
+    trajectory: Trajectory | DrivenTrajectory
+    watch: VesselWatch
+    lidar: object
+    receiver: object
+    t_start: float
+    t_end: float
+    loop: ClosedLoop | None = None
+
+    @classmethod
+    def build(cls, scenario: Scenario, world, planned: Trajectory, lidar, receiver, t_start: float, t_end: float) -> "VesselRun":
+        """Open loop: the planned trajectory. Closed loop: a driven one starting where the plan is at t_start, at its speed.
+        The sensors see `world` with the scenario's traffic (a chase boat follows the trajectory the vessel takes)."""
+        control = scenario.control
+        clearance = HullClearance(world, hull_mesh(scenario.vessel.hull, mast_top_m=0.0))
+        if control.mode == "open_loop":
+            scene = Scene(world, build_traffic(scenario.traffic, world, planned))
+            return cls(scenario, scene, planned, VesselWatch(world, planned, clearance, lidar.revolution_s), lidar, receiver, t_start, t_end)
+        start = planned.pose(t_start)
+        driven = DrivenTrajectory(scenario.vessel.model_copy(update={"seed": scenario.seed}), control.dynamics,
+                                  (start[0, 3], start[1, 3], float(np.arctan2(start[1, 0], start[0, 0])), float(planned.speed(t_start))),
+                                  t0=t_start, current_enu=control.current_enu_mps)
+        watch = VesselWatch(world, driven, clearance, lidar.revolution_s)
+        end_station = float(planned.station(t_end))
+        t_limit = t_start + control.time_limit_factor * (t_end - t_start)
+        scene = Scene(world, build_traffic(scenario.traffic, world, driven, t_start))
+        loop = ClosedLoop(scene, driven, lidar, receiver, watch, t_start, end_station, t_limit)
+        return cls(scenario, scene, driven, watch, lidar, receiver, t_start, t_end, loop)
+
+    def events(self, feed) -> Iterator:
+        """The run's scans and fixes in time order; closed loop steers on `feed`'s estimator (or the truth)."""
+        if self.loop is None:
+            return watched(planned_events(self.world, self.trajectory, self.lidar, self.receiver, self.t_start, self.t_end),
+                           self.watch, self.lidar.revolution_s)
+        control = self.scenario.control
+        autopilot = Autopilot(self.world.route, control.dynamics, self.scenario.vessel.speed_mps, control.autopilot)
+        believed = self.trajectory.pose if control.steer_on == "truth" else (lambda t: feed.pose_of(control.steer_on))
+        if control.heading == "estimator":
+            return autopiloted(self.loop, autopilot, lambda t: (believed(t), None))
+        compass = Compass(control.compass_sigma_deg, control.gyro_sigma_dps, self.scenario.seed)
+
+        def steer(t: float) -> tuple[np.ndarray, float]:
+            yaw, rate = compass.read(self.trajectory, t, self.t_start)
+            return with_heading(believed(t), yaw), rate
+
+        return autopiloted(self.loop, autopilot, steer)

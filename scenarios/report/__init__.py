@@ -1,0 +1,1 @@
+"""What a person reads: the run report, the comparison report, plots, terminal tables, generated results."""

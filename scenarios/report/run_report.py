@@ -1,0 +1,284 @@
+"""The run report: plots/*.png, report.md and a self-contained report.html, from a run directory.
+
+`write(run_dir)` reads only the run directory's files (metrics.json, scenario.toml, the TUM and CSV
+files), so it serves at the end of a run and on any finished run directory later. The report is
+built once as a list of blocks (headings, paragraphs, tables, figures) and rendered twice: as
+Markdown referencing plots/*.png, and as HTML with the figures embedded as data: URIs.
+Every file is written under a temporary name and renamed.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from riverbench.atomic import atomic_path
+from scenarios.report import plots, vessel_plot
+from scenarios.report.document import NULL, Cell, Column, Heading, Image, Table, Text, get, metres, num, ranked_table, share, to_html, to_markdown
+
+
+@dataclass(frozen=True)
+class Context:
+    """What the report sections draw on."""
+
+    metrics: dict
+    info: dict
+    images: dict[str, str]
+    t0: float
+    windows: dict
+
+
+def write(run_dir: Path, scenario=None) -> None:
+    """Write plots/*.png, report.md and report.html into a finished run directory."""
+    run_dir = Path(run_dir)
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    info = scenario_info(run_dir, scenario)
+    series = plots.load(run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info))
+    images = plots.write_all(series, run_dir / "plots")
+    vessel_node = metrics.get("vessel", {})
+    images |= vessel_plot.write(run_dir, float(vessel_node.get("clearance_threshold_m") or 0.0), vessel_node)
+    ctx = Context(metrics, info, images, series.t0, plots.read_csv(run_dir / "windows.csv"))
+    blocks = build(ctx)
+    for name, text in (("report.md", to_markdown(blocks)), ("report.html", to_html(blocks, run_dir, title=f"riverbench: {name_of(ctx)}"))):
+        with atomic_path(run_dir / name) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+            tmp.chmod(plots.FILE_MODE)
+
+
+def scenario_info(run_dir: Path, scenario) -> dict:
+    """The resolved scenario as a dict (with its hash when known): from the model, else scenario.toml, else empty."""
+    if scenario is not None:
+        return {**scenario.resolved(), "hash": scenario.hash}
+    path = run_dir / "scenario.toml"
+    return tomllib.loads(path.read_text()) if path.exists() else {}
+
+
+def hdop_limits(info: dict) -> dict[str, float]:
+    """The HDOP threshold of each estimator whose monitor is 'hdop' and sets one."""
+    return {e["id"]: float(e["monitor_params"]["max_hdop"]) for e in info.get("estimators", [])
+            if e.get("monitor") == "hdop" and "max_hdop" in e.get("monitor_params", {})}
+
+
+def name_of(ctx: Context) -> str:
+    """The scenario's name (from the scenario, else from metrics.json)."""
+    return ctx.info.get("name") or ctx.metrics.get("run", {}).get("scenario", "run")
+
+
+# ---- formatting -------------------------------------------------------------------------------------
+
+
+# ---- blocks -----------------------------------------------------------------------------------------
+
+def build(ctx: Context) -> list:
+    """Every block of the report, in reading order."""
+    return [*header(ctx), *failures(ctx), *expectations(ctx), *vessel(ctx), *figures(ctx, "vessel"), *estimators(ctx),
+            *figures(ctx, "map", "error", "yaw"),
+            *gps(ctx), *figures(ctx, "hdop_error"), *windows(ctx), *matchers(ctx), *figures(ctx, "matchers")]
+
+
+def header(ctx: Context) -> list:
+    """Title, description, identity of the run and how fast it ran."""
+    run, info = ctx.metrics.get("run", {}), ctx.info
+    blocks = [Heading(1, f"riverbench report: {name_of(ctx)}")]
+    if info.get("description"):
+        blocks.append(Text(info["description"]))
+    identity = [f"seed {info.get('seed', run.get('seed', NULL))}", f"scenario hash {info.get('hash') or run.get('scenario_hash', NULL)}"]
+    if info.get("world"):
+        identity.append(f"world {info['world']}")
+    identity.append(f"stretch {stretch_text(info.get('stretch', {}))}: t = {num(run.get('t_start'), '.1f')} … {num(run.get('t_end'), '.1f')} s")
+    blocks.append(Text(" · ".join(identity), "meta"))
+    blocks.append(Text(f"{num(run.get('sim_s'), '.0f')} s simulated in {num(run.get('wall_s'), '.1f')} s "
+                       f"({num(run.get('realtime_factor'), '.1f')}× real time) · {run.get('scans', NULL)} scans · "
+                       f"{run.get('fixes', NULL)} GPS fixes · peak memory {num(run.get('peak_rss_mb'), '.0f')} MB · "
+                       f"{run.get('workers', NULL)} worker process{'' if run.get('workers') == 1 else 'es'}", "meta"))
+    outcomes = ctx.metrics.get("expectations", [])
+    passed = sum(bool(o.get("pass")) for o in outcomes)
+    if outcomes:
+        blocks.append(Text(f"Expectations: {passed} of {len(outcomes)} passed", "pass" if passed == len(outcomes) else "fail"))
+    return blocks
+
+
+def stretch_text(stretch: dict) -> str:
+    """The stretch as the scenario gives it: by route station or by time."""
+    if "start_m" in stretch or "end_m" in stretch:
+        end = f"{stretch['end_m']:.0f} m" if "end_m" in stretch else "the route's end"
+        return f"{stretch.get('start_m', 0.0):.0f} m to {end} along the route"
+    if "start_s" in stretch or "end_s" in stretch:
+        end = f"{stretch['end_s']:.1f} s" if "end_s" in stretch else "its end"
+        return f"{stretch.get('start_s', 0.0):.1f} s to {end} of the trajectory"
+    return "the whole route"
+
+
+def failures(ctx: Context) -> list:
+    """Components that failed during the run (none: no section)."""
+    rows = [[Cell(f.get("component", NULL), css="fail"), Cell(str(f.get("id", NULL))), Cell(num(f.get("stamp"), ".2f")),
+             Cell(str(f.get("reason", "")), css="text")] for f in ctx.metrics.get("run", {}).get("failures", [])]
+    return [Heading(2, "Failures"), Table(["component", "id", "at t (s)", "reason"], rows)] if rows else []
+
+
+def expectations(ctx: Context) -> list:
+    """Each expectation with its value and PASS or FAIL (and why)."""
+    outcomes = ctx.metrics.get("expectations", [])
+    if not outcomes:
+        return [Heading(2, "Expectations"), Text("The scenario sets no expectations.")]
+    rows = [[Cell(o["expect"], css="text"), Cell(num(o.get("value"), ".4g")),
+             Cell("PASS" if o.get("pass") else "FAIL", css="pass" if o.get("pass") else "fail"),
+             Cell(o.get("reason") or "", css="text")] for o in outcomes]
+    return [Heading(2, "Expectations"), Table(["expectation", "value", "result", "reason"], rows)]
+
+
+def vessel(ctx: Context) -> list:
+    """How the vessel fared: steered on what, how it ended, its closest approach to a structure and its cross-track error."""
+    node = ctx.metrics.get("vessel")
+    if not node:
+        return []
+    control = ctx.info.get("control", {})
+    mode = control.get("mode", "open_loop")
+    steering = ("open loop: the vessel follows the route exactly" if mode == "open_loop"
+                else f"closed loop: the autopilot steers on {control.get('steer_on', '?')} (heading from the {control.get('heading', 'compass')})")
+    ended = {"completed": "reached the end of the stretch", "collision": f"hit {node.get('collision_part')} at t = {num(node.get('collision_t'), '.1f')} s",
+             "time_limit": "ran out of time before the end of the stretch", "interrupted": "stopped early"}.get(node.get("outcome"), str(node.get("outcome")))
+    cross = node.get("cross_track", {})
+    rows = [[Cell(str(node.get("outcome")), css="pass" if node.get("outcome") == "completed" else "fail"),
+             Cell(f"{metres(node.get('min_clearance_m'))} ({node.get('min_clearance_part') or NULL})"),
+             Cell(num(node.get("time_below_threshold_s"), ".1f")), Cell(metres(cross.get("mean"))), Cell(metres(cross.get("p95"))),
+             Cell(metres(cross.get("max"))), Cell(num(node.get("distance_m"), ".0f"))]]
+    note = (f"{steering}; it {ended}. Clearance: the distance from the hull to the nearest structure (overhead decks excluded); "
+            f"time within {num(node.get('clearance_threshold_m'), '.1f')} m of one; cross-track: the true offset from the route, metres.")
+    return [Heading(2, "Vessel"), Table(["outcome", "min clearance (nearest)", "s below threshold", "cross-track mean", "p95", "max",
+                                         "distance (m)"], rows, note)]
+
+
+ACCURACY_COLUMNS = [
+    Column("available", get("available"), share, "high"),
+    Column("APE rmse", get("ape.rmse"), metres),
+    Column("APE median", get("ape.median"), metres),
+    Column("APE p95", get("ape.p95"), metres),
+    Column("APE max", get("ape.max"), metres),
+    Column("RPE 10 m", get("rpe_10m.mean"), metres),
+    Column("RPE 100 m", get("rpe_100m.mean"), metres),
+    Column("yaw p95 (°)", get("yaw.p95"), metres),
+]
+DEGRADATION_COLUMNS = [
+    Column("blackout max", get("windows.blackout.max_error"), metres),
+    Column("blackout exit", get("windows.blackout.exit_error"), metres),
+    Column("reacquisition max", get("windows.reacquisition.max_error"), metres),
+    Column("NLOS max", get("windows.nlos.max_error"), metres),
+    Column("injected max", get("windows.injected.max_error"), metres),
+    Column("monitor", get("monitor_kind"), lambda v: NULL if v is None else str(v), None, text=True),
+    Column("recall", get("monitor.added_5m.recall"), share, "high"),
+    Column("false alarms", get("monitor.added_5m.false_alarm_rate"), share),
+]
+
+
+def estimators(ctx: Context) -> list:
+    """Two tables, a row per estimator: accuracy over the run; worst errors through GPS degradation and monitor scores."""
+    nodes = ctx.metrics.get("estimators", {})
+    if not nodes:
+        return []
+    monitors = {e["id"]: e.get("monitor", "none") for e in ctx.info.get("estimators", []) if "id" in e}
+    labels = {eid: _failed_label(eid, n) for eid, n in nodes.items()}
+    accuracy = ranked_table("estimator", nodes, ACCURACY_COLUMNS, labels,
+                            note="Horizontal errors in metres over the scans with an estimate (available); RPE: mean error per 10 m "
+                                 "and per 100 m of true travel. Bold: best in its column.")
+    # no monitor: its scores mean nothing; a window kind the run never met: its column would be all '–'
+    nodes = {eid: {**(n if monitors.get(eid, "none") != "none" else _without_monitor(n)), "monitor_kind": monitors.get(eid)}
+             for eid, n in nodes.items()}
+    columns = [c for c in DEGRADATION_COLUMNS if any(c.value(n) is not None for n in nodes.values())]
+    degradation = ranked_table("estimator", nodes, columns, labels,
+                               note="Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit). "
+                                    "Monitor: recall and false-alarm rate on measured fixes whose environment-added error exceeds 5 m. "
+                                    "Bold: best in its column.")
+    return [Heading(2, "Estimators"), accuracy, Heading(3, "Through GPS degradation"), degradation]
+
+
+def _without_monitor(node: dict) -> dict:
+    """The metrics node with its monitor scores removed (an estimator without a monitor)."""
+    return {k: v for k, v in node.items() if k != "monitor"}
+
+
+def _failed_label(eid: str, node: dict) -> str:
+    """The row label of an estimator or matcher: its id, and when it failed."""
+    return f"{eid} (failed at {num(node.get('failed_at'), '.1f')} s)" if node.get("failed") else eid
+
+
+MATCHER_COLUMNS = [
+    Column("success", get("success"), share, "high"),
+    Column("gated", get("gated"), share),
+    Column("Hz", get("hz"), lambda v: num(v, ".1f"), "high"),
+    Column("ms p95", get("ms.p95"), lambda v: num(v, ".1f")),
+    Column("points median", get("points.median"), lambda v: num(v, ".0f"), None),
+    Column("degenerate", get("degenerate"), share),
+    Column("APE aligned rmse", get("ape_aligned.rmse"), metres),
+    Column("RPE 10 m", get("rpe_10m.mean"), metres),
+    Column("RPE 100 m", get("rpe_100m.mean"), metres),
+    Column("yaw p95 (°)", get("yaw.p95"), metres),
+]
+
+
+def matchers(ctx: Context) -> list:
+    """One row per scan matcher: success, speed, points, degeneracy and odometry accuracy."""
+    nodes = ctx.metrics.get("matchers", {})
+    if not nodes:
+        return []
+    note = ("Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; "
+            "degenerate: usable matches with an unobserved direction. Errors (m) of the odometry chained from the true "
+            "start pose; APE aligned: after the best-fit rigid planar motion. Bold: best in its column.")
+    return [Heading(2, "Scan matchers"), ranked_table("matcher", nodes, MATCHER_COLUMNS, {mid: _failed_label(mid, n) for mid, n in nodes.items()}, note)]
+
+
+def gps(ctx: Context) -> list:
+    """The receiver: availability, shares, HDOP, and its true error split into open-sky and environment-added."""
+    g = ctx.metrics.get("gps")
+    if not g:
+        return []
+    shares = Table(["fixes", "measured", "valid (incl. dead reckoning)", "blackout", "NLOS share", "HDOP median", "faulty (> 5 m)"],
+                   [[Cell(str(g.get("fixes", NULL))), Cell(share(g.get("availability"))), Cell(share(g.get("valid"))),
+                     Cell(share(g.get("blackout"))), Cell(share(g.get("nlos_share"))), Cell(num(g.get("hdop_median"), ".2f")),
+                     Cell(share(g.get("faulty_5m")))]])
+    keys = ("rmse", "mean", "median", "p95", "max")
+    errors = Table(["horizontal error of measured fixes (m)", *keys],
+                   [[Cell(label)] + [Cell(metres((g.get(node) or {}).get(k))) for k in keys]
+                    for node, label in (("error", "true error"), ("open_sky_error", "open-sky part"), ("added_error", "added by the environment"))])
+    return [Heading(2, "GPS"), shares, errors]
+
+
+WINDOW_KEYS = ("max_error", "exit_error", "recover_s")
+
+
+def windows(ctx: Context) -> list:
+    """Every GPS-degradation window with each estimator's worst and exit error and its recovery time."""
+    w = ctx.windows
+    kinds = w.get("kind", [])
+    if not len(kinds):
+        return [Heading(2, "GPS-degradation windows"), Text("No blackout, NLOS, re-acquisition or injected-fault window in this run.")]
+    eids = [e for e in ctx.metrics.get("estimators", {}) if f"{e}.max_error" in w]
+    rows = []
+    for i, kind in enumerate(kinds):
+        cells = [Cell(str(kind)), Cell(num(w["start"][i] - ctx.t0, ".1f")), Cell(num(w["end"][i] - ctx.t0, ".1f")), Cell(num(w["duration"][i], ".1f"))]
+        cells += [Cell(passage_text(w[f"{e}.max_error"][i], w[f"{e}.exit_error"][i], w[f"{e}.recover_s"][i])) for e in eids]
+        rows.append(cells)
+    note = ("Times in seconds since the first scan. Per estimator: the worst horizontal error in the window / at its end, "
+            "in metres, and (in brackets) how long after the window it took to come back within 1 m of its error at entry "
+            "(never: not by the end of the run).")
+    return [Heading(2, "GPS-degradation windows"), Table(["kind", "start (s)", "end (s)", "duration (s)", *eids], rows, note)]
+
+
+def passage_text(max_error: float, exit_error: float, recover_s: float) -> str:
+    """'max / exit (recovery)' of one estimator through one window."""
+    if max_error != max_error:
+        return NULL
+    recovery = "never" if recover_s != recover_s else f"{recover_s:.1f} s"
+    return f"{metres(max_error)} / {metres(exit_error)} ({recovery})"
+
+
+def figures(ctx: Context, *stems: str) -> list:
+    """The figures among `stems` that were drawn."""
+    return [Image(f"plots/{s}.png", ctx.images[f"plots/{s}.png"]) for s in stems if f"plots/{s}.png" in ctx.images]
+
+
+# ---- rendering --------------------------------------------------------------------------------------
+
+

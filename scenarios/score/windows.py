@@ -1,0 +1,99 @@
+"""GPS-degradation windows from the simulator's truth, and how an estimate fared through each.
+
+Kinds: `blackout` (no measured position: the receiver coasts or reports nothing), `nlos` (measured
+fixes that used a satellite received only by reflection), `reacquisition` (after a blackout, until
+what the environment adds to the receiver's error falls below REACQUIRED_M: its internal filter
+smooths a wrong estimate for a while), `injected` (the scenario's forced GPS faults).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.score.record import FixTable
+
+KINDS = ("blackout", "nlos", "reacquisition", "injected")
+NLOS_MERGE_S = 1.0
+"""NLOS stretches at most this far apart are one window."""
+REACQUIRED_M = 1.0
+"""Re-acquisition ends at the first measured fix whose environment-added error is below this."""
+REACQUISITION_MAX_S = 120.0
+RECOVERED_MARGIN_M = 1.0
+"""An estimate has recovered once its error is back within this of its error at the window's entry."""
+
+
+@dataclass(frozen=True)
+class Window:
+    kind: str
+    start: float
+    end: float
+
+    @property
+    def duration(self) -> float:
+        return self.end - self.start
+
+
+def find(fixes: FixTable, injected: list[tuple[float, float]], period_s: float) -> list[Window]:
+    """Every window of the run, sorted by start; a window ends at the first fix after it."""
+    t = fixes.t
+    out: list[Window] = []
+    blackouts = _runs(t, fixes.quality != 1, period_s, 0.0)
+    out += [Window("blackout", a, b) for a, b in blackouts]
+    out += [Window("nlos", a, b) for a, b in _runs(t, fixes.nlos_used, period_s, NLOS_MERGE_S)]
+    added = fixes.added_error
+    for _, end in blackouts:
+        after = np.nonzero((t >= end) & (t < end + REACQUISITION_MAX_S) & (fixes.quality == 1))[0]
+        if not len(after):
+            continue
+        done = after[added[after] < REACQUIRED_M]
+        stop = float(t[done[0]]) if len(done) else float(min(t[after[-1]] + period_s, end + REACQUISITION_MAX_S))
+        if stop > end:
+            out.append(Window("reacquisition", float(end), stop))
+    out += [Window("injected", float(a), float(b)) for a, b in injected if b > t[0] and a < t[-1] + period_s] if len(t) else []
+    return sorted(out, key=lambda w: (w.start, KINDS.index(w.kind)))
+
+
+def _runs(t: np.ndarray, flag: np.ndarray, period_s: float, merge_s: float) -> list[tuple[float, float]]:
+    """[start, end) of each run of flagged epochs (end: the next epoch), runs closer than merge_s merged."""
+    runs: list[list[float]] = []
+    for i in np.nonzero(flag)[0]:
+        start, end = float(t[i]), float(t[i + 1]) if i + 1 < len(t) else float(t[i] + period_s)
+        if runs and start - runs[-1][1] <= merge_s + 1e-9:
+            runs[-1][1] = end
+        else:
+            runs.append([start, end])
+    return [(a, b) for a, b in runs]
+
+
+@dataclass(frozen=True)
+class Passage:
+    """One estimate through one window: the largest error inside it or at its exit (the first scan
+    at or after its end), at entry (the last scan before it) and exit, what the window added
+    (exit - entry) and the time after the window until the error is back within
+    RECOVERED_MARGIN_M of its entry value (NaN: not within the run)."""
+
+    max_error: float
+    entry_error: float
+    exit_error: float
+    added: float
+    recover_s: float
+
+
+def passage(window: Window, t: np.ndarray, error: np.ndarray) -> Passage:
+    """How an estimate with horizontal `error` at scan times `t` went through `window`."""
+    nan = float("nan")
+    inside = (t >= window.start) & (t < window.end)
+    before = np.nonzero(t < window.start)[0]
+    after = np.nonzero(t >= window.end)[0]
+    entry = float(error[before[-1]]) if len(before) else (float(error[inside][0]) if inside.any() else nan)
+    span = error[inside]
+    exit_error = float(error[after[0]]) if len(after) else (float(span[-1]) if len(span) else nan)
+    max_error = float(np.nanmax(np.r_[span, exit_error])) if np.isfinite(np.r_[span, exit_error]).any() else nan
+    recover = nan
+    if len(after) and np.isfinite(entry):
+        back = after[error[after] <= entry + RECOVERED_MARGIN_M]
+        if len(back):
+            recover = max(0.0, float(t[back[0]] - window.end))
+    return Passage(max_error, entry, exit_error, exit_error - entry, recover)

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from stream_drive import drive
 
 import fusion
 import matcher
 import sim
 import worlds
-from scenarios.pipeline.stream import drive
 from sim.gnss import GnssReceiver
 
 NAMES = ("gps_only", "hdop_switch", "ekf")

@@ -1,4 +1,4 @@
-"""scenarios.pipeline.stream: lazy time-ordered scans and fixes from the simulator, and the drive helper."""
+"""scenarios.pipeline.stream: lazy time-ordered scans and fixes from the simulator, and the tests' drive helper."""
 
 from __future__ import annotations
 
@@ -6,12 +6,13 @@ import inspect
 
 import numpy as np
 import pytest
+from stream_drive import drive
 
 import fusion
 import matcher
 import sim
 import worlds
-from scenarios.pipeline.stream import FixEvent, ScanEvent, drive, events
+from scenarios.pipeline.stream import FixEvent, ScanEvent, events
 from sim.gnss import GnssReceiver
 
 

@@ -32,7 +32,7 @@ def import_ray():
 
 def run_packed(job) -> tuple:
     """Ray task: run the job in a scratch directory; return its outcome and the run directory as a tar archive."""
-    from scenarios.batch.sweep import run_job
+    from scenarios.batch.job import run_job
 
     scratch = Path(tempfile.mkdtemp(prefix="riverbench-ray-"))
     try:

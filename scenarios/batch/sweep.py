@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import shutil
 import statistics
-import time
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
@@ -21,45 +20,13 @@ import numpy as np
 
 from riverbench.atomic import atomic_path
 from scenarios.batch import table
+from scenarios.batch.job import Job, JobOutcome, run_job
 from scenarios.batch.plan import SweepPlan, SweepPoint
 from scenarios.batch.workers import JobResult, run_jobs
 from scenarios.spec.library import load
 
 PLAN_FILE = "sweep.json"
 RUNS = "runs"
-
-
-@dataclass(frozen=True)
-class Job:
-    """What a backend runs: a point, where its run directory goes, with or without report, processes inside."""
-
-    point: SweepPoint
-    run_dir: str
-    report: bool
-    workers: int
-
-
-@dataclass(frozen=True)
-class JobOutcome:
-    """A finished job: 'ok' with the run's metrics, or 'failed' with the reason."""
-
-    status: str
-    wall_s: float
-    metrics: dict | None = None
-    reason: str = ""
-
-
-def run_job(job: Job) -> JobOutcome:
-    """Load and run one point into job.run_dir; a run's own failure is an outcome, not an exception."""
-    from scenarios.pipeline.runner import run
-
-    start = time.perf_counter()
-    try:
-        scenario = load(job.point.source, set=list(job.point.assignments), seed=job.point.seed)
-        result = run(scenario, job.run_dir, workers=job.workers, report=job.report)
-    except Exception as exc:  # recorded with its reason; the sweep goes on
-        return JobOutcome("failed", time.perf_counter() - start, reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
-    return JobOutcome("ok", time.perf_counter() - start, result.metrics)
 
 
 @dataclass

@@ -8,7 +8,6 @@ whole charles_river route streams in constant memory. The same seed gives the sa
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -87,8 +86,8 @@ def _events(scenario: Scenario, run: VesselRun, t_start: float) -> Iterator:
         return
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
     recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], run.trajectory.mount)
-    with MatcherPool(setups, workers=1) as pool, open(os.devnull, "w") as nmea:
-        feed = Feed(scenario, pool, recorder, run.trajectory.pose, nmea, lambda event: [], t_start)
+    with MatcherPool(setups, workers=1) as pool:
+        feed = Feed(scenario, pool, recorder, run.trajectory.pose, t_start)
         for event in run.events(feed):
             feed.push(event)
             yield event

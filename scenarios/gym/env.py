@@ -23,7 +23,6 @@ limit (control.time_limit_factor x the stretch's planned time).
 
 from __future__ import annotations
 
-import io
 import math
 import os
 from dataclasses import dataclass
@@ -116,7 +115,7 @@ class RiverNavEnv(gymnasium.Env):
         run = VesselRun.build(sc, self.world, planned, lidar, receiver, t_start, t_end)
         pool = MatcherPool([MatcherSetup(m.id, m.ref, m.params) for m in sc.matchers], workers=1)
         recorder = Recorder([m.id for m in sc.matchers], [e.id for e in sc.estimators], run.trajectory.mount)
-        feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, io.StringIO(), lambda event: [], t_start)
+        feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, t_start)
         pilot = Autopilot(self.world.route, sc.control.dynamics, sc.vessel.speed_mps, sc.control.autopilot)
         compass = Compass(sc.control.compass_sigma_deg, sc.control.gyro_sigma_dps, episode_seed)
         self._episode = _Episode(run, pool, feed, pilot, compass)

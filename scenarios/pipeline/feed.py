@@ -50,9 +50,10 @@ class Feed:
     """drive(events), or push(event) for each event in time order then finish(); `recorder` holds what came out."""
 
     def __init__(self, scenario: Scenario, pool: MatcherPool, recorder: Recorder, base_pose: Callable[[float], np.ndarray],
-                 nmea: TextIO, sentences: Callable[[object], list[str]], t_start: float) -> None:
+                 t_start: float, log_fix: Callable[[object], None] | None = None) -> None:
+        """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
-        self.nmea, self.sentences = nmea, sentences
+        self.log_fix = log_fix
         self.feeds = {e.id: e.matcher for e in scenario.estimators}
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
@@ -136,15 +137,14 @@ class Feed:
         self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
 
     def _fix(self, event) -> None:
-        """One fix to every estimator, its verdicts into the record, its sentences to the NMEA log."""
+        """One fix to every estimator, its verdicts into the record, then to log_fix."""
         fix = event.fix
         verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp)
         # a failed estimator raises no alarm: its fixes count as trusted with no statistic
         self.recorder.fix(fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan)
                                 for eid in self.estimators})
-        lines = self.sentences(event)
-        if lines:
-            self.nmea.write("\r\n".join(lines) + "\r\n")
+        if self.log_fix is not None:
+            self.log_fix(event)
 
 
 def build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:
@@ -173,3 +173,14 @@ def checked_verdict(verdict) -> Verdict:
     if not isinstance(verdict, Verdict):
         raise TypeError(f"add_fix returned a {type(verdict).__name__}, not a fusion.Verdict")
     return verdict
+
+
+def nmea_writer(log: TextIO, sentences: Callable[[object], list[str]]) -> Callable[[object], None]:
+    """A Feed's log_fix that appends each fix event's NMEA sentences (CR LF terminated, as a receiver sends them) to `log`."""
+
+    def write(event) -> None:
+        lines = sentences(event)
+        if lines:
+            log.write("\r\n".join(lines) + "\r\n")
+
+    return write

@@ -28,7 +28,7 @@ import worlds
 from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
 from scenarios.pipeline import files
-from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
+from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
 from scenarios.pipeline.traffic_log import TrafficLog
 from scenarios.pipeline.vessel_run import VesselRun
@@ -110,7 +110,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], trajectory.mount)
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        feed = Feed(scenario, pool, recorder, trajectory.pose, nmea, lambda event: event.fix.nmea(), t_start)
+        feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()))
         feed.drive(traffic_log.tap(vessel_run.events(feed)),
                    lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
                    (ValueError, RuntimeError, FloatingPointError))

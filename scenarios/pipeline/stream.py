@@ -1,16 +1,15 @@
-"""Streaming scenario driver: LiDAR scans and GNSS fixes generated lazily in time order, and a small
-helper that drives matchers and fusion estimators over them and keeps estimates against truth.
+"""The simulated sensor stream: LiDAR scans and GNSS fixes generated lazily in time order (what the Feed consumes).
 
-Nothing holds the run: each scan is simulated, matched and dropped; only per-time estimates (a few
-numbers per scan and per fix) are kept, so memory stays flat in scenario length up to those.
+Nothing holds the run: each scan is simulated when it is asked for and dropped after it is matched, so memory stays
+flat in scenario length.
 """
 
 from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -63,105 +62,4 @@ def pose_xyzyaw(T: np.ndarray) -> np.ndarray:
     return np.array([T[0, 3], T[1, 3], T[2, 3], math.atan2(T[1, 0], T[0, 0])])
 
 
-@dataclass
-class Track:
-    """What a drive keeps: per scan, truth and every estimate; per fix, its truth and every verdict.
-
-    scan_stamp (N,); truth (N, 4) x, y, z, yaw of base_link; estimate[name] (N, 4) and cov[name]
-    (N, 3, 3) of (x, y, yaw) after that scan; match_ok[matcher] (N,) bool. fix_stamp (M,);
-    fix_error (M,) true horizontal error (NaN without a position); fix_quality, fix_hdop (M,);
-    trusted[name] (M,) bool and statistic[name] (M,) per estimator.
-    """
-
-    scan_stamp: np.ndarray
-    truth: np.ndarray
-    estimate: dict[str, np.ndarray]
-    cov: dict[str, np.ndarray]
-    match_ok: dict[str, np.ndarray]
-    fix_stamp: np.ndarray
-    fix_error: np.ndarray
-    fix_quality: np.ndarray
-    fix_hdop: np.ndarray
-    trusted: dict[str, np.ndarray]
-    statistic: dict[str, np.ndarray]
-
-    def error(self, name: str) -> np.ndarray:
-        """(N,) horizontal error of an estimator at the scan times (NaN before it is initialised)."""
-        return np.hypot(*(self.estimate[name][:, :2] - self.truth[:, :2]).T)
-
-
-@dataclass
-class _Columns:
-    rows: dict[str, list] = field(default_factory=dict)
-
-    def add(self, key: str, value) -> None:
-        self.rows.setdefault(key, []).append(value)
-
-    def array(self, key: str, empty_shape: tuple = (0,), dtype=float) -> np.ndarray:
-        values = self.rows.get(key)
-        return np.asarray(values, dtype=dtype) if values else np.zeros(empty_shape, dtype=dtype)
-
-
-def drive(
-    world,
-    trajectory,
-    lidar,
-    receiver,
-    matchers: Mapping[str, object],
-    estimators: Mapping[str, object],
-    t_start: float = 0.0,
-    t_end: float | None = None,
-    on_event=None,
-) -> Track:
-    """Run matchers and estimators over the stream; each estimator gets its own matcher's results.
-
-    matchers: name -> object with register(scan) -> MatchResult; estimators: name -> fusion
-    Estimator (its params.matcher must be among `matchers` when it uses odometry). on_event, if
-    given, is called with each event (e.g. to advance a progress bar).
-    """
-    for name, est in estimators.items():
-        wanted = est.params.matcher
-        if getattr(est, "uses_odometry", True) and wanted not in matchers:
-            raise ValueError(f"stream: estimator '{name}' uses matcher '{wanted}', not among the matchers given ({', '.join(matchers) or 'none'})")
-    cols = _Columns()
-    for event in events(world, trajectory, lidar, receiver, t_start, t_end):
-        if isinstance(event, ScanEvent):
-            results = {m: matcher.register(event.scan) for m, matcher in matchers.items()}
-            for name, est in estimators.items():
-                if getattr(est, "uses_odometry", True):
-                    est.add_match(event.stamp, results[est.params.matcher])
-                cols.add(f"est:{name}", pose_xyzyaw(est.pose))
-                cols.add(f"cov:{name}", est.cov)
-            for m, result in results.items():
-                cols.add(f"ok:{m}", bool(result.ok))
-            cols.add("scan_stamp", event.stamp)
-            cols.add("truth", pose_xyzyaw(trajectory.pose(event.stamp)))
-        else:
-            fix = event.fix
-            for name, est in estimators.items():
-                verdict = est.add_fix(fix)
-                cols.add(f"trusted:{name}", bool(verdict.trusted))
-                cols.add(f"stat:{name}", float(verdict.statistic))
-            error = fix.truth.error if fix.truth is not None else None
-            cols.add("fix_stamp", event.stamp)
-            cols.add("fix_error", float(np.hypot(error[0], error[1])) if error is not None and fix.quality else math.nan)
-            cols.add("fix_quality", int(fix.quality))
-            cols.add("fix_hdop", float(fix.hdop))
-        if on_event is not None:
-            on_event(event)
-    return Track(
-        scan_stamp=cols.array("scan_stamp"),
-        truth=cols.array("truth", (0, 4)),
-        estimate={n: cols.array(f"est:{n}", (0, 4)) for n in estimators},
-        cov={n: cols.array(f"cov:{n}", (0, 3, 3)) for n in estimators},
-        match_ok={m: cols.array(f"ok:{m}", dtype=bool) for m in matchers},
-        fix_stamp=cols.array("fix_stamp"),
-        fix_error=cols.array("fix_error"),
-        fix_quality=cols.array("fix_quality", dtype=int),
-        fix_hdop=cols.array("fix_hdop"),
-        trusted={n: cols.array(f"trusted:{n}", dtype=bool) for n in estimators},
-        statistic={n: cols.array(f"stat:{n}") for n in estimators},
-    )
-
-
-__all__ = ["FixEvent", "ScanEvent", "Track", "drive", "events", "pose_xyzyaw", "scan_times"]
+__all__ = ["FixEvent", "ScanEvent", "events", "pose_xyzyaw", "scan_times"]

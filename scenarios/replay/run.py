@@ -36,7 +36,7 @@ from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
 from scenarios.export import check_out, staged_dir
 from scenarios.pipeline import files
-from scenarios.pipeline.feed import Feed
+from scenarios.pipeline.feed import Feed, nmea_writer
 from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import bag, pcap
@@ -112,7 +112,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
     start = np.eye(4)
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        feed = Feed(scenario, pool, recorder, lambda stamp: start, nmea, lambda event: list(event.sentences), recording.t_start)
+        feed = Feed(scenario, pool, recorder, lambda stamp: start, recording.t_start, nmea_writer(nmea, lambda event: list(event.sentences)))
         feed.drive(recording.events(),
                    lambda event: progress is not None and isinstance(event, ScanEvent)
                    and progress(event.stamp, recording.t_start, recording.t_end, feed.scans),

@@ -179,9 +179,13 @@ def test_nothing_half_written_remains(run_dir):
 
 
 def test_rewriting_a_report_replaces_it(run_dir):
-    before = (run_dir / "report.md").read_text()
+    before = {name: (run_dir / name).read_bytes() for name in ("report.md", "report.html")}
+    for name in before:
+        (run_dir / name).write_text("stale")
+    (run_dir / "plots" / "map.png").write_bytes(b"stale")
     report.write(run_dir)
-    assert (run_dir / "report.md").read_text() == before
+    assert {name: (run_dir / name).read_bytes() for name in before} == before
+    assert (run_dir / "plots" / "map.png").read_bytes().startswith(b"\x89PNG")
 
 
 def test_a_scenario_given_names_the_report(tmp_path):

@@ -148,7 +148,9 @@ def test_the_csv_holds_the_same_values_as_the_parquet_table(local_sweep):
 
     with open(local_sweep.out_dir / "results.csv", newline="") as f:
         csv_rows = list(csv.DictReader(f))
-    for r, c in zip(local_sweep.rows, csv_rows):
+    assert len(csv_rows) == len(local_sweep.rows) > 0
+    for r, c in zip(local_sweep.rows, csv_rows, strict=True):
+        assert set(c) == set(r)
         for key, value in r.items():
             if isinstance(value, float):
                 assert float(c[key]) == value or (math.isnan(value) and c[key] == "nan")

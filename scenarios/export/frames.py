@@ -14,13 +14,12 @@ from datetime import datetime
 
 import numpy as np
 
-import sim
-import worlds
+from scenarios.pipeline.assembly import assemble, matcher_setups
+from scenarios.pipeline.assembly import recorder as make_recorder
 from scenarios.pipeline.feed import Feed
-from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.pipeline.vessel_run import VesselRun
-from scenarios.score.record import Recorder
 from scenarios.spec.scenario import Scenario
 from sim.gnss_fix import GnssFix
 from sim.scan import Scan
@@ -66,14 +65,9 @@ def open_stream(scenario: Scenario) -> tuple[StreamInfo, Iterator[Frame]]:
     in this process so the autopilot can steer on one); `scans` is then the planned count, an upper
     bound when the vessel stops early (a collision).
     """
-    world = worlds.load(scenario.world, **scenario.world_params)
-    planned = sim.Trajectory(world, seed=scenario.seed, **scenario.vessel.model_dump(exclude={"seed"}))
-    lidar = sim.HDL32E(seed=scenario.seed, **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
-                       rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
-    receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
-    t_start, t_end = scenario.stretch.times(planned)
+    stack = assemble(scenario)
+    world, lidar, run, t_start, t_end = stack.world, stack.lidar, stack.vessel_run, stack.t_start, stack.t_end
     n_scans = int(np.floor((t_end - t_start) / lidar.revolution_s + 1e-9))
-    run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
     info = StreamInfo(scenario.name, t_start, t_end, n_scans, scenario.lidar.rate_hz, scenario.gnss.rate_hz,
                       tuple(world.origin), scenario.gnss.epoch_utc, run.trajectory.mount.copy(), tuple(scenario.gnss.antenna_offset_m))
     return info, _frames(_events(scenario, run, t_start), run.trajectory)
@@ -84,9 +78,8 @@ def _events(scenario: Scenario, run: VesselRun, t_start: float) -> Iterator:
     if run.loop is None:
         yield from run.events(None)
         return
-    setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
-    recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], run.trajectory.mount)
-    with MatcherPool(setups, workers=1) as pool:
+    with MatcherPool(matcher_setups(scenario), workers=1) as pool:
+        recorder = make_recorder(scenario, run.trajectory.mount)
         feed = Feed(scenario, pool, recorder, run.trajectory.pose, t_start)
         for event in run.events(feed):
             feed.push(event)

@@ -32,14 +32,13 @@ import numpy as np
 from gymnasium import spaces
 from pydantic import BaseModel, ConfigDict, Field
 
-import sim
 import worlds
 from scenarios.gym import observation
+from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed
-from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import FixEvent, ScanEvent
 from scenarios.pipeline.vessel_run import VesselRun
-from scenarios.score.record import Recorder
 from scenarios.spec.scenario import Scenario
 from sim.autopilot import Autopilot
 from sim.compass import Compass, with_heading
@@ -108,13 +107,10 @@ class RiverNavEnv(gymnasium.Env):
         self._close_episode()
         episode_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
         sc = self.scenario.model_copy(update={"seed": episode_seed})
-        planned = sim.Trajectory(self.world, seed=episode_seed, **sc.vessel.model_dump(exclude={"seed"}))
-        lidar = sim.HDL32E(seed=episode_seed, **sc.lidar.model_dump(exclude={"seed"}))
-        receiver = sim.GnssReceiver(seed=episode_seed, **sc.gnss.model_dump())
-        t_start, t_end = sc.stretch.times(planned)
-        run = VesselRun.build(sc, self.world, planned, lidar, receiver, t_start, t_end)
-        pool = MatcherPool([MatcherSetup(m.id, m.ref, m.params) for m in sc.matchers], workers=1)
-        recorder = Recorder([m.id for m in sc.matchers], [e.id for e in sc.estimators], run.trajectory.mount)
+        stack = assemble(sc, self.world)
+        run, t_start = stack.vessel_run, stack.t_start
+        pool = MatcherPool(matcher_setups(sc), workers=1)
+        recorder = stack.recorder()
         feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, t_start)
         pilot = Autopilot(self.world.route, sc.control.dynamics, sc.vessel.speed_mps, sc.control.autopilot)
         compass = Compass(sc.control.compass_sigma_deg, sc.control.gyro_sigma_dps, episode_seed)

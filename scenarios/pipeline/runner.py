@@ -23,19 +23,17 @@ from pathlib import Path
 
 import tomli_w
 
-import sim
-import worlds
 from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
 from scenarios.pipeline import files
+from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
-from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.traffic_log import TrafficLog
-from scenarios.pipeline.vessel_run import VesselRun
 from scenarios.score import metrics, vessel_log
 from scenarios.score import windows as win
 from scenarios.score.expectations import Outcome
-from scenarios.score.record import Recorder, RunRecord
+from scenarios.score.record import RunRecord
 from scenarios.spec.scenario import Scenario
 
 RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
@@ -97,18 +95,12 @@ def run(
 
 def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progress) -> tuple[dict, list[Outcome]]:
     wall_start = time.perf_counter()
-    world = worlds.load(scenario.world, **scenario.world_params)
-    vessel = scenario.vessel.model_dump(exclude={"seed"})
-    planned = sim.Trajectory(world, seed=scenario.seed, **vessel)
-    lidar = sim.HDL32E(seed=scenario.seed, **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
-                       rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
-    receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
-    t_start, t_end = scenario.stretch.times(planned)
-    vessel_run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
+    stack = assemble(scenario)
+    lidar, receiver, vessel_run, t_start, t_end = stack.lidar, stack.receiver, stack.vessel_run, stack.t_start, stack.t_end
     trajectory = vessel_run.trajectory
     traffic_log = TrafficLog(vessel_run.world)
-    recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], trajectory.mount)
-    setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
+    recorder = stack.recorder()
+    setups = matcher_setups(scenario)
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()))
         feed.drive(traffic_log.tap(vessel_run.events(feed)),

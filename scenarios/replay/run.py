@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 import tomli_w
-from scipy.spatial.transform import Rotation
 
 import scenarios
 import worlds
@@ -36,14 +35,16 @@ from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
 from scenarios.export import check_out, staged_dir
 from scenarios.pipeline import files
+from scenarios.pipeline.assembly import matcher_setups
+from scenarios.pipeline.assembly import recorder as make_recorder
 from scenarios.pipeline.feed import Feed, nmea_writer
-from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import bag, pcap
 from scenarios.replay import metrics as replay_metrics
 from scenarios.replay.recording import Place, Recording
 from scenarios.score import metrics as run_metrics
-from scenarios.score.record import Recorder, RunRecord
+from scenarios.score.record import RunRecord
 from scenarios.spec.scenario import Scenario
 
 PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
@@ -108,8 +109,8 @@ def magic(path: Path) -> bytes:
 def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress) -> dict:
     """Stream the recording through the matchers and estimators and write the run directory's data files into `tmp`."""
     wall_start = time.perf_counter()
-    recorder = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], mount(scenario))
-    setups = [MatcherSetup(m.id, m.ref, m.params) for m in scenario.matchers]
+    recorder = make_recorder(scenario)
+    setups = matcher_setups(scenario)
     start = np.eye(4)
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, lambda stamp: start, recording.t_start, nmea_writer(nmea, lambda event: list(event.sentences)))
@@ -144,14 +145,6 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
     files.write_gps_csv(tmp / "gps.csv", rec, truth=False)
     return tree
-
-
-def mount(scenario: Scenario) -> np.ndarray:
-    """base_link <- lidar of the scenario's boat (its [vessel] mount_xyz and mount_rpy_deg)."""
-    out = np.eye(4)
-    out[:3, :3] = Rotation.from_euler("xyz", scenario.vessel.mount_rpy_deg, degrees=True).as_matrix()
-    out[:3, 3] = scenario.vessel.mount_xyz
-    return out
 
 
 def anchored(rec: RunRecord, estimator_ids: list[str]) -> RunRecord:

@@ -31,18 +31,17 @@ POSE, VEL, BIAS, CLONE = slice(0, 3), slice(3, 6), slice(6, 8), slice(8, 11)
 
 
 class EkfParams(MotionModelParams):
-    """EKF parameters on top of the shared ones (defaults in brackets).
+    """EKF parameters on top of the shared motion and GPS model (see MotionModelParams)."""
 
-    Motion and GPS white-noise parameters: see MotionModelParams.
-    position_walk_sigma: extra position random walk, m/sqrt(s) [0.02].
-    odom_gate_prob: chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a
-        matcher failure [0.999999, gate at 30.7].
-    monitor: 'combined_cn0' (consistency + cn0), the best measured by benchmarks/monitors.py.
-    """
-
-    monitor: str = "combined_cn0"
-    position_walk_sigma: float = Field(0.02, ge=0)
-    odom_gate_prob: float = Field(0.999999, gt=0.5, lt=1.0)
+    monitor: str = Field(
+        "combined_cn0", description="GPS integrity monitor [combined_cn0 (consistency + cn0), the best measured by benchmarks/monitors.py]"
+    )
+    position_walk_sigma: float = Field(0.02, ge=0, description="extra position random walk, m/sqrt(s) [0.02]")
+    odom_gate_prob: float = Field(
+        0.999999, gt=0.5, lt=1.0,
+        description="chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a matcher failure "
+        "[0.999999, gate at 30.7]",
+    )
 
 
 class Ekf(Estimator):

@@ -21,11 +21,13 @@ from fusion.verdict import Verdict
 
 
 class GpsOnlyParams(EstimatorParams):
-    """course_min_m: GPS travel needed to update the course-over-ground heading [10 m]."""
+    """gps_only parameters on top of the shared ones: the receiver's output taken as it is."""
 
-    monitor: str = "none"
-    accept_dead_reckoning: bool = True
-    course_min_m: float = Field(10.0, gt=0)
+    monitor: str = Field("none", description="GPS integrity monitor; it only labels fixes, the pose is unchanged [none]")
+    accept_dead_reckoning: bool = Field(
+        True, description="use the receiver's own dead-reckoned output (GGA 6) as a fix [True: the receiver's output as it is]"
+    )
+    course_min_m: float = Field(10.0, gt=0, description="GPS travel needed to update the course-over-ground heading [10 m]")
 
 
 class GpsOnly(Estimator):

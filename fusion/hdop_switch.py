@@ -19,10 +19,10 @@ from fusion.params import EstimatorParams
 
 
 class HdopSwitchParams(EstimatorParams):
-    """realign_baseline_m: trusted GPS travel that re-aligns the odometry heading [20 m]."""
+    """hdop_switch parameters on top of the shared ones: the last trusted fix carried forward by odometry."""
 
-    monitor: str = "hdop"
-    realign_baseline_m: float = Field(20.0, gt=0)
+    monitor: str = Field("hdop", description="GPS integrity monitor deciding which fixes are trusted [hdop]")
+    realign_baseline_m: float = Field(20.0, gt=0, description="trusted GPS travel that re-aligns the odometry heading [20 m]")
 
 
 class HdopSwitch(Estimator):

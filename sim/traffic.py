@@ -81,7 +81,7 @@ class _MoverConfig(BaseModel):
 class ChaseConfig(_MoverConfig):
     """A chase boat following the ASV at a set distance and lateral offset (the field study's ASV was driven from one)."""
 
-    kind: Literal["chase"] = "chase"
+    kind: Literal["chase"] = Field("chase", description="mover kind: chase, crossing or along")
     boat: BoatKind = Field("runabout", description="boat kind: runabout (5.5 m), cruiser (10 m), barge (30 m, 7.5 m wheelhouse)")
     distance_m: float = Field(15.0, gt=0, description="centre behind the ASV's base_link, along its heading, m")
     lateral_m: float = Field(-6.0, description="centre to the ASV's left, m (negative: to its right)")
@@ -91,7 +91,7 @@ class ChaseConfig(_MoverConfig):
 class CrossingConfig(_MoverConfig):
     """A boat crossing the river straight across the route at a chosen station and time, waiting at its landings."""
 
-    kind: Literal["crossing"] = "crossing"
+    kind: Literal["crossing"] = Field("crossing", description="mover kind: chase, crossing or along")
     station_m: float = Field(..., ge=0, description="route station where it crosses the centreline, m")
     time_s: float = Field(..., ge=0, description="scenario time at which it crosses the centreline, s")
     speed_mps: float = Field(3.0, gt=0, le=15, description="speed over ground, m/s")
@@ -107,7 +107,7 @@ class CrossingConfig(_MoverConfig):
 class AlongConfig(_MoverConfig):
     """A boat along the route at constant speed: overtaking (faster than the ASV, same way) or oncoming."""
 
-    kind: Literal["along"] = "along"
+    kind: Literal["along"] = Field("along", description="mover kind: chase, crossing or along")
     station_m: float = Field(..., ge=0, description="route station where it is at time_s, m")
     time_s: float = Field(..., ge=0, description="scenario time at which it is at station_m, s")
     speed_mps: float = Field(4.0, gt=0, le=15, description="speed over ground, m/s")

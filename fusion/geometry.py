@@ -75,15 +75,6 @@ def between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([d[0], d[1], float(wrap(b[2] - a[2]))])
 
 
-def compose_jacobians(pose: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Jacobians of compose(pose, delta) with respect to pose and to delta."""
-    j_pose = np.eye(3)
-    j_pose[:2, 2] = drot2(pose[2]) @ delta[:2]
-    j_delta = np.eye(3)
-    j_delta[:2, :2] = rot2(pose[2])
-    return j_pose, j_delta
-
-
 def pose_matrix(x: float, y: float, z: float, yaw: float) -> np.ndarray:
     """4x4 world<-base_link for a level vessel at (x, y, z) heading yaw."""
     T = np.eye(4)

@@ -6,9 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion.geometry import compose, rot2, wrap
+from fusion.geometry import compose, rot2
 from fusion.observation import FixObservation
 from fusion.odometry import OdometryTrack
+from riverbench.angles import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -118,7 +119,7 @@ class Bootstrap:
             u = d / max(float(np.linalg.norm(d)), 1e-9)
             across = (gps - gps[0]) @ np.array([-u[1], u[0]])
             sigma2 = max(sigma2, float(np.var(across)))
-        yaw = float(wrap(np.arctan2(d[1], d[0])))
+        yaw = float(wrap_angle(np.arctan2(d[1], d[0])))
         xy = gps[-1] - rot2(yaw) @ self.lever
         yaw_var = 2.0 * sigma2 / max(float(d @ d), 1e-9)
         return Alignment(self._samples[-1].stamp, np.array([xy[0], xy[1], yaw]), np.diag([sigma2, sigma2, yaw_var]))

@@ -20,10 +20,11 @@ from scipy.stats import chi2
 
 from fusion.bootstrap import Alignment
 from fusion.estimator import Estimator
-from fusion.geometry import between, compose, drot2, rot2, wrap
+from fusion.geometry import between, compose, drot2, rot2
 from fusion.monitors import Monitor
 from fusion.observation import FixObservation
 from fusion.params import MotionModelParams
+from riverbench.angles import wrap_angle
 
 X, Y, TH, V, VL, W, BX, BY, CX, CY, CTH = range(11)
 N = 11
@@ -96,7 +97,7 @@ class Ekf(Estimator):
         F[TH, W] = dt
         self.x[X] += (v * c - vl * s) * dt
         self.x[Y] += (v * s + vl * c) * dt
-        self.x[TH] = wrap(th + self.x[W] * dt)
+        self.x[TH] = wrap_angle(th + self.x[W] * dt)
         Q = np.zeros((N, N))
         q_acc = np.array([p.accel_sigma**2, p.lateral_accel_sigma**2, math.radians(p.yaw_accel_sigma_deg) ** 2])
         # white acceleration integrated over dt: velocity dt, position-velocity dt^2/2, position dt^3/3
@@ -121,8 +122,8 @@ class Ekf(Estimator):
         S = H @ self.P @ H.T + R
         K = np.linalg.solve(S, H @ self.P).T
         self.x += K @ y
-        self.x[TH] = wrap(self.x[TH])
-        self.x[CTH] = wrap(self.x[CTH])
+        self.x[TH] = wrap_angle(self.x[TH])
+        self.x[CTH] = wrap_angle(self.x[CTH])
         A = np.eye(N) - K @ H
         self.P = A @ self.P @ A.T + K @ R @ K.T
         self.P = 0.5 * (self.P + self.P.T)
@@ -133,14 +134,14 @@ class Ekf(Estimator):
         cth = self.x[CTH]
         r_t = rot2(cth).T
         d = self.x[X:Y + 1] - self.x[CX:CY + 1]
-        h = np.r_[r_t @ d, wrap(self.x[TH] - cth)]
+        h = np.r_[r_t @ d, wrap_angle(self.x[TH] - cth)]
         H = np.zeros((3, N))
         H[:2, X:Y + 1] = r_t
         H[:2, CX:CY + 1] = -r_t
         H[:2, CTH] = drot2(cth).T @ d
         H[2, TH], H[2, CTH] = 1.0, -1.0
         y = step - h
-        y[2] = wrap(y[2])
+        y[2] = wrap_angle(y[2])
         S = H @ self.P @ H.T + step_cov
         nis = float(y @ np.linalg.solve(S, y))
         if nis > self._odom_gate:

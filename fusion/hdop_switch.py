@@ -12,10 +12,11 @@ from pydantic import Field
 
 from fusion.bootstrap import Alignment
 from fusion.estimator import Estimator
-from fusion.geometry import between, compose, drot2, rot2, wrap
+from fusion.geometry import between, compose, drot2, rot2
 from fusion.monitors import Monitor
 from fusion.observation import FixObservation
 from fusion.params import EstimatorParams
+from riverbench.angles import wrap_angle
 
 
 class HdopSwitchParams(EstimatorParams):
@@ -50,7 +51,7 @@ class HdopSwitch(Estimator):
     def _initialise(self, alignment: Alignment) -> None:
         odo = self.odometry.pose_at(alignment.stamp)
         if odo is not None:
-            self._offset = float(wrap(alignment.pose[2] - odo[2]))
+            self._offset = float(wrap_angle(alignment.pose[2] - odo[2]))
             self._offset_var = alignment.cov[2, 2]
         self._anchor(alignment.stamp, alignment.pose, alignment.cov)
         self._init = True
@@ -104,10 +105,10 @@ class HdopSwitch(Estimator):
                 d_gps = obs.xy - self._course[0].xy
                 d_odo = odo[:2] - self._course[1][:2]
                 if float(np.linalg.norm(d_odo)) > 0.5 * self.params.realign_baseline_m:
-                    self._offset = float(wrap(math.atan2(d_gps[1], d_gps[0]) - math.atan2(d_odo[1], d_odo[0])))
+                    self._offset = float(wrap_angle(math.atan2(d_gps[1], d_gps[0]) - math.atan2(d_odo[1], d_odo[0])))
                     self._offset_var = 2.0 * float(np.trace(obs.cov)) / float(d_gps @ d_gps)
                 self._course = (obs, odo, segment)
-            yaw = float(wrap(odo[2] + self._offset))
+            yaw = float(wrap_angle(odo[2] + self._offset))
         else:
             yaw = float(self._dead_reckoned()[0][2])
         xy = obs.xy - rot2(yaw) @ self.lever

@@ -33,7 +33,8 @@ from matcher.covariance import (
     left_perturbation_jacobian,
     to_xyzrpy,
 )
-from matcher.motion import deskew, se3_log, twist_changed
+from matcher.deskew import deskew_rounds
+from matcher.motion import deskew
 from matcher.planarity import planarity
 from matcher.pointplane import PlaneFit, point_to_plane_fit
 from matcher.remap import keep_prior_along
@@ -128,15 +129,12 @@ class Gicp(DeskewingMatcher):
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
-        prior = T = self.velocity.predict(dt)
-        twist = self.velocity.twist_per_s
-        ref = self._ref
+        prior = self.velocity.predict(dt)
         screen = self._comoving_screen(prior)
-        for _ in range(p.deskew_iterations):
-            cur = self._prepare(cloud, twist, screen)
+
+        def align(cur: _Prepared, ref: _Prepared, T: np.ndarray | None) -> tuple[np.ndarray, tuple] | None:
             if len(cur.xyz) < 6 or len(ref.xyz) < 6:
-                self._cur = cur
-                return MatchResult.failure("too few points after downsampling")
+                return None
             res = small_gicp.align(
                 ref.points, cur.points, ref.tree,
                 init_T_target_source=T,
@@ -150,13 +148,17 @@ class Gicp(DeskewingMatcher):
             fit = cur.plane_fit(ref, res.T_target_source, p)
             cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
             T = keep_prior_along(res.T_target_source, prior, fit.H, [d for d in degeneracy.directions if d[:3].any()])
-            new_twist = se3_log(T) / dt
-            if ref.twist is None:  # the first reference was never de-skewed: use this estimate
-                ref = self._prepare(ref.cloud, new_twist)
-            if not twist_changed(new_twist, twist, dt):
-                break
-            twist = new_twist
+            return T, (res, fit, cov_param, degeneracy)
+
+        ref, cur, aligned = deskew_rounds(
+            cloud, self._ref, self.velocity.twist_per_s, prior, dt, p.deskew_iterations,
+            lambda c, twist: self._prepare(c, twist, screen), align, self._prepare,
+        )
+        if aligned is None:
+            self._cur = cur
+            return MatchResult.failure("too few points after downsampling")
         self._ref, self._cur = ref, cur
+        T, (res, fit, cov_param, degeneracy) = aligned
         n_src = len(cur.xyz)
         inlier_share = res.num_inliers / n_src
         info = {

@@ -1,0 +1,16 @@
+"""riverbench: the ground floor every package may import and that imports nothing of ours.
+
+`__version__` is the installed distribution's version ('0+unknown' when it is not installed);
+`riverbench.angles` wraps angles, one formula for every package.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("riverbench")
+except PackageNotFoundError:
+    __version__ = "0+unknown"
+
+__all__ = ["__version__"]

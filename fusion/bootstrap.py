@@ -89,15 +89,17 @@ class Bootstrap:
                 return None  # the odometry chain restarted recently: wait for it to span the baseline
             if np.linalg.norm(q[-1] - q[0]) >= 0.5 * self.baseline_m:
                 # the fit places the latest fix's odometry pose; a latest fix without odometry has none to place
-                return self._procrustes(g, q, sigma2) if self._odo_at_last is not None else None
+                odo = self._odo_at_last
+                return self._procrustes(g, q, sigma2, odo) if odo is not None else None
         return self._course(gps, sigma2)
 
-    def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float) -> Alignment:
+    def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float, odo: np.ndarray) -> Alignment:
+        """Alignment placing `odo`, the odometry pose at the latest fix, from the fit of the odometry antenna track q onto the fixes g."""
         gc, qc = g - g.mean(0), q - q.mean(0)
         h = qc.T @ gc
         theta = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
         t = g.mean(0) - rot2(theta) @ q.mean(0)
-        world = compose(np.array([t[0], t[1], theta]), self._odo_at_last)
+        world = compose(np.array([t[0], t[1], theta]), odo)
         spread = float(np.sum(qc**2))
         residual = g - (q @ rot2(theta).T + t)
         sigma2 = max(sigma2, float(np.sum(residual**2)) / max(2 * (len(g) - 2), 1))  # per axis

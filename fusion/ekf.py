@@ -76,8 +76,9 @@ class Ekf(Estimator):
             self.x[V:W + 1] = velocity[0]
             self.P[V:W + 1, V:W + 1] = np.diag(np.clip(np.diag(velocity[1]), [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))
         clone = alignment.pose
-        if now is not None and self.odometry.last_stamp == self._ref_stamp:
-            clone = compose(alignment.pose, between(now, self.odometry.last_pose))
+        last_pose = self.odometry.last_pose
+        if now is not None and last_pose is not None and self.odometry.last_stamp == self._ref_stamp:
+            clone = compose(alignment.pose, between(now, last_pose))
         self.x[CLONE] = clone
         self.P[CLONE, CLONE] = alignment.cov
         self.P[CLONE, POSE] = self.P[POSE, CLONE] = alignment.cov

@@ -74,19 +74,25 @@ class GpsOnly(Estimator):
     def _restart(self) -> None:
         self._last = None
 
+    def _latest(self) -> FixObservation:
+        """The receiver's last output (asked for only once initialised, i.e. once there is one)."""
+        assert self._last is not None
+        return self._last
+
     def _pose3(self) -> np.ndarray:
-        xy = self._last.xy - rot2(self._yaw) @ self.lever
+        xy = self._latest().xy - rot2(self._yaw) @ self.lever
         return np.array([xy[0], xy[1], self._yaw])
 
     def _cov3(self) -> np.ndarray:
         cov = np.zeros((3, 3))
-        cov[:2, :2] = self._last.cov
+        cov[:2, :2] = self._latest().cov
         cov[2, 2] = self._yaw_var
         return cov
 
     def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         j = drot2(self._yaw) @ self.lever
-        return self._last.xy.copy(), self._last.cov + np.outer(j, j) * self._yaw_var, obs.cov
+        last = self._latest()
+        return last.xy.copy(), last.cov + np.outer(j, j) * self._yaw_var, obs.cov
 
     def _heading(self) -> tuple[float, float]:
         return self._yaw, self._yaw_var

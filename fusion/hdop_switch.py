@@ -42,7 +42,7 @@ class HdopSwitch(Estimator):
         self._anchor_stamp = 0.0
         self._anchor_cov = np.eye(3)
         self._segment: int | None = None
-        self._course: tuple[FixObservation, np.ndarray, int] | None = None
+        self._course: tuple[FixObservation, np.ndarray, int | None] | None = None  # fix, odometry pose, segment
 
     @property
     def initialized(self) -> bool:
@@ -70,6 +70,7 @@ class HdopSwitch(Estimator):
         now = self.odometry.pose_at(self.stamp)
         if now is None:
             now = self.odometry.last_pose
+        assert now is not None  # the track has a segment, so it has nodes
         pose = compose(self._anchor_world, between(self._anchor_odo, now))
         moved = self.odometry.displacement(self._anchor_stamp, self.stamp, np.zeros(2))
         cov = self._anchor_cov.copy()
@@ -89,6 +90,7 @@ class HdopSwitch(Estimator):
         if not self._init or self.odometry.segment is None:
             return
         pose, cov, end = self._anchor_world, self._anchor_cov, self.odometry.last_pose
+        assert end is not None  # the track has a segment, so it has nodes
         if self._anchor_odo is not None and self._segment == self.odometry.segment - 1:
             pose = compose(self._anchor_world, between(self._anchor_odo, end))
             cov = cov + np.diag(np.diag(self._default_odom_cov)[[0, 1, 5]])

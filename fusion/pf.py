@@ -109,13 +109,13 @@ class Pf(Estimator):
         self.vel = mean + self.rng.standard_normal((n, 3)) * sigma
         self.clones = self.poses.copy()
         self._clone_stamp = alignment.stamp
-        now = self.odometry.pose_at(alignment.stamp)
-        if now is not None and self.odometry.last_stamp == self._ref_stamp:
-            back = between(now, self.odometry.last_pose)  # from now back to the reference scan, body frame
+        now, last_pose, last_stamp = self.odometry.pose_at(alignment.stamp), self.odometry.last_pose, self.odometry.last_stamp
+        if now is not None and last_pose is not None and last_stamp is not None and last_stamp == self._ref_stamp:
+            back = between(now, last_pose)  # from now back to the reference scan, body frame
             rot = _rot_batch(self.poses[:, 2])
             self.clones = self.poses + np.einsum("nij,j->ni", rot, back)
             self.clones[:, 2] = wrap_angle(self.clones[:, 2])
-            self._clone_stamp = self.odometry.last_stamp
+            self._clone_stamp = last_stamp
         self._coast_cov = np.zeros((3, 3))
         self.logw = np.full(n, -math.log(n))
         self.bias = np.zeros((n, 2))

@@ -88,7 +88,7 @@ class _Prepared:
         return self._features
 
 
-class Pcl6d(DeskewingMatcher):
+class Pcl6d(DeskewingMatcher[_Prepared]):
     """Method 1: filter, FPFH + RANSAC pre-alignment, robust point-to-plane ICP."""
 
     name = "pcl6d"
@@ -180,7 +180,7 @@ class Pcl6d(DeskewingMatcher):
             return self._align(cur, ref, T, dt)
 
         ref, cur, aligned = deskew_rounds(
-            cloud, self._ref, twist, None if twist is None else self.velocity.predict(dt), dt, p.deskew_iterations,
+            cloud, self._reference(), twist, None if twist is None else self.velocity.predict(dt), dt, p.deskew_iterations,
             self._prepare, align,
         )
         self._cur = cur

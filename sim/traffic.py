@@ -13,10 +13,11 @@ from dataclasses import dataclass
 from typing import Annotated, Literal
 
 import numpy as np
+import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sim.boats import BoatKind, boat
-from sim.movers import AlongRoute, Chase, Crossing, Mover, rigid_inverse
+from sim.movers import AlongRoute, Chase, Crossing, Motion, Mover, rigid_inverse
 from sim.multipath import Reflections
 
 LANDING_MARGIN_M = 5.0
@@ -44,7 +45,7 @@ class Traffic:
         """905 nm reflectivity per mover (float32)."""
         return np.array([m.material.reflectivity for m in self.movers], dtype=np.float32)
 
-    def poses(self, ts: np.ndarray) -> np.ndarray:
+    def poses(self, ts: npt.ArrayLike) -> np.ndarray:
         """(M, N, 4, 4) world<-body of every mover at times ts (N,)."""
         ts = np.atleast_1d(np.asarray(ts, dtype=float))
         return np.stack([m.poses(ts) for m in self.movers]) if self.movers else np.zeros((0, len(ts), 4, 4))
@@ -142,6 +143,7 @@ def build_traffic(config: TrafficConfig | None, world, trajectory, t_start: floa
     movers = []
     for spec in config.movers if config is not None else ():
         mesh, material = boat(spec.boat)
+        motion: Motion
         if spec.kind == "chase":
             motion = Chase(trajectory, spec.distance_m, spec.lateral_m, spec.lag_s, t_start)
         elif spec.kind == "crossing":
@@ -149,5 +151,6 @@ def build_traffic(config: TrafficConfig | None, world, trajectory, t_start: floa
             motion = Crossing.across(world.route, spec.station_m, spec.time_s, spec.speed_mps, spec.angle_deg, margin)
         else:
             motion = AlongRoute(world.route, spec.station_m, spec.time_s, spec.speed_mps, spec.lateral_m, spec.oncoming)
+        assert spec.id is not None  # TrafficConfig names every mover
         movers.append(Mover(spec.id, mesh, material, motion))
     return Traffic(tuple(movers))

@@ -144,9 +144,8 @@ class ConsistencyMonitor(Monitor):
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
-        in_guard = (gap or self._guard_start is not None) and (
-            obs.stamp - (obs.stamp if gap else self._guard_start) < self.params.guard_s or passes < self.params.guard_n
-        )
+        guard_from = obs.stamp if gap else self._guard_start  # None: no guard running
+        in_guard = guard_from is not None and (obs.stamp - guard_from < self.params.guard_s or passes < self.params.guard_n)
         if tests and statistic > self.gate:
             which = "window" if window_d2 == statistic else "reference"
             return Verdict(False, statistic, f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}")

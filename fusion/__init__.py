@@ -8,7 +8,8 @@ the matchers' `MatchResult`s; never the simulator's truth.
 
 from __future__ import annotations
 
-from pydantic import BaseModel
+from collections.abc import Callable
+from typing import Any
 
 from fusion import monitors
 from fusion.ekf import Ekf, EkfParams
@@ -21,7 +22,7 @@ from fusion.pf import Pf, PfParams
 from fusion.verdict import Event, Verdict
 from matcher import plugin
 
-_ESTIMATORS: dict[str, tuple[type[Estimator], type[BaseModel]]] = {
+_ESTIMATORS: dict[str, tuple[Callable[..., Estimator], type[BaseEstimatorParams]]] = {  # (class, its parameter model)
     "gps_only": (GpsOnly, GpsOnlyParams),
     "hdop_switch": (HdopSwitch, HdopSwitchParams),
     "ekf": (Ekf, EkfParams),
@@ -41,7 +42,7 @@ def available() -> list[str]:
     return built_in() + [name for name in plugin.names(GROUP) if name not in _ESTIMATORS]
 
 
-def params_model(name: str) -> type[BaseModel]:
+def params_model(name: str) -> type[BaseEstimatorParams]:
     """The pydantic model of estimator `name`'s parameters (documented defaults); `name` may be 'package.module:Class'."""
     return _ESTIMATORS[name][1] if name in _ESTIMATORS else _plugin(name).Params
 
@@ -54,7 +55,7 @@ def create(name: str, **params) -> Estimator:
     return cls(p, monitor)
 
 
-def _plugin(name: str) -> type:
+def _plugin(name: str) -> type[Any]:
     """The plugin estimator class `name` names (checked), or a ValueError listing the known names."""
     if not plugin.is_path(name) and name not in plugin.names(GROUP):
         raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())}, or a plugin 'package.module:Class')")

@@ -6,9 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion.geometry import compose, rot2, wrap
+from fusion.geometry import compose, rot2
 from fusion.observation import FixObservation
 from fusion.odometry import OdometryTrack
+from riverbench.angles import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -88,15 +89,17 @@ class Bootstrap:
                 return None  # the odometry chain restarted recently: wait for it to span the baseline
             if np.linalg.norm(q[-1] - q[0]) >= 0.5 * self.baseline_m:
                 # the fit places the latest fix's odometry pose; a latest fix without odometry has none to place
-                return self._procrustes(g, q, sigma2) if self._odo_at_last is not None else None
+                odo = self._odo_at_last
+                return self._procrustes(g, q, sigma2, odo) if odo is not None else None
         return self._course(gps, sigma2)
 
-    def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float) -> Alignment:
+    def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float, odo: np.ndarray) -> Alignment:
+        """Alignment placing `odo`, the odometry pose at the latest fix, from the fit of the odometry antenna track q onto the fixes g."""
         gc, qc = g - g.mean(0), q - q.mean(0)
         h = qc.T @ gc
         theta = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
         t = g.mean(0) - rot2(theta) @ q.mean(0)
-        world = compose(np.array([t[0], t[1], theta]), self._odo_at_last)
+        world = compose(np.array([t[0], t[1], theta]), odo)
         spread = float(np.sum(qc**2))
         residual = g - (q @ rot2(theta).T + t)
         sigma2 = max(sigma2, float(np.sum(residual**2)) / max(2 * (len(g) - 2), 1))  # per axis
@@ -118,7 +121,7 @@ class Bootstrap:
             u = d / max(float(np.linalg.norm(d)), 1e-9)
             across = (gps - gps[0]) @ np.array([-u[1], u[0]])
             sigma2 = max(sigma2, float(np.var(across)))
-        yaw = float(wrap(np.arctan2(d[1], d[0])))
+        yaw = float(wrap_angle(np.arctan2(d[1], d[0])))
         xy = gps[-1] - rot2(yaw) @ self.lever
         yaw_var = 2.0 * sigma2 / max(float(d @ d), 1e-9)
         return Alignment(self._samples[-1].stamp, np.array([xy[0], xy[1], yaw]), np.diag([sigma2, sigma2, yaw_var]))

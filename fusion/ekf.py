@@ -20,10 +20,11 @@ from scipy.stats import chi2
 
 from fusion.bootstrap import Alignment
 from fusion.estimator import Estimator
-from fusion.geometry import between, compose, drot2, rot2, wrap
+from fusion.geometry import between, compose, drot2, rot2
 from fusion.monitors import Monitor
 from fusion.observation import FixObservation
 from fusion.params import MotionModelParams
+from riverbench.angles import wrap_angle
 
 X, Y, TH, V, VL, W, BX, BY, CX, CY, CTH = range(11)
 N = 11
@@ -31,18 +32,17 @@ POSE, VEL, BIAS, CLONE = slice(0, 3), slice(3, 6), slice(6, 8), slice(8, 11)
 
 
 class EkfParams(MotionModelParams):
-    """EKF parameters on top of the shared ones (defaults in brackets).
+    """EKF parameters on top of the shared motion and GPS model (see MotionModelParams)."""
 
-    Motion and GPS white-noise parameters: see MotionModelParams.
-    position_walk_sigma: extra position random walk, m/sqrt(s) [0.02].
-    odom_gate_prob: chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a
-        matcher failure [0.999999, gate at 30.7].
-    monitor: 'combined_cn0' (consistency + cn0), the best measured by benchmarks/monitors.py.
-    """
-
-    monitor: str = "combined_cn0"
-    position_walk_sigma: float = Field(0.02, ge=0)
-    odom_gate_prob: float = Field(0.999999, gt=0.5, lt=1.0)
+    monitor: str = Field(
+        "combined_cn0", description="GPS integrity monitor [combined_cn0 (consistency + cn0), the best measured by benchmarks/monitors.py]"
+    )
+    position_walk_sigma: float = Field(0.02, ge=0, description="extra position random walk, m/sqrt(s) [0.02]")
+    odom_gate_prob: float = Field(
+        0.999999, gt=0.5, lt=1.0,
+        description="chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a matcher failure "
+        "[0.999999, gate at 30.7]",
+    )
 
 
 class Ekf(Estimator):
@@ -76,8 +76,9 @@ class Ekf(Estimator):
             self.x[V:W + 1] = velocity[0]
             self.P[V:W + 1, V:W + 1] = np.diag(np.clip(np.diag(velocity[1]), [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))
         clone = alignment.pose
-        if now is not None and self.odometry.last_stamp == self._ref_stamp:
-            clone = compose(alignment.pose, between(now, self.odometry.last_pose))
+        last_pose = self.odometry.last_pose
+        if now is not None and last_pose is not None and self.odometry.last_stamp == self._ref_stamp:
+            clone = compose(alignment.pose, between(now, last_pose))
         self.x[CLONE] = clone
         self.P[CLONE, CLONE] = alignment.cov
         self.P[CLONE, POSE] = self.P[POSE, CLONE] = alignment.cov
@@ -97,7 +98,7 @@ class Ekf(Estimator):
         F[TH, W] = dt
         self.x[X] += (v * c - vl * s) * dt
         self.x[Y] += (v * s + vl * c) * dt
-        self.x[TH] = wrap(th + self.x[W] * dt)
+        self.x[TH] = wrap_angle(th + self.x[W] * dt)
         Q = np.zeros((N, N))
         q_acc = np.array([p.accel_sigma**2, p.lateral_accel_sigma**2, math.radians(p.yaw_accel_sigma_deg) ** 2])
         # white acceleration integrated over dt: velocity dt, position-velocity dt^2/2, position dt^3/3
@@ -122,8 +123,8 @@ class Ekf(Estimator):
         S = H @ self.P @ H.T + R
         K = np.linalg.solve(S, H @ self.P).T
         self.x += K @ y
-        self.x[TH] = wrap(self.x[TH])
-        self.x[CTH] = wrap(self.x[CTH])
+        self.x[TH] = wrap_angle(self.x[TH])
+        self.x[CTH] = wrap_angle(self.x[CTH])
         A = np.eye(N) - K @ H
         self.P = A @ self.P @ A.T + K @ R @ K.T
         self.P = 0.5 * (self.P + self.P.T)
@@ -134,14 +135,14 @@ class Ekf(Estimator):
         cth = self.x[CTH]
         r_t = rot2(cth).T
         d = self.x[X:Y + 1] - self.x[CX:CY + 1]
-        h = np.r_[r_t @ d, wrap(self.x[TH] - cth)]
+        h = np.r_[r_t @ d, wrap_angle(self.x[TH] - cth)]
         H = np.zeros((3, N))
         H[:2, X:Y + 1] = r_t
         H[:2, CX:CY + 1] = -r_t
         H[:2, CTH] = drot2(cth).T @ d
         H[2, TH], H[2, CTH] = 1.0, -1.0
         y = step - h
-        y[2] = wrap(y[2])
+        y[2] = wrap_angle(y[2])
         S = H @ self.P @ H.T + step_cov
         nis = float(y @ np.linalg.solve(S, y))
         if nis > self._odom_gate:

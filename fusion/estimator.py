@@ -182,7 +182,7 @@ class Estimator:
         self.odometry.add(stamp, step, step_cov)
         self._ref_stamp = stamp
         if not self.initialized and self.params.initial_pose is not None:
-            self._initialise_from_params(stamp)
+            self._initialise_from_params(stamp, self.params.initial_pose)
 
     # ---- shared machinery -------------------------------------------------------------------
     def _refuse_stamp(self, stamp, source: str) -> str:
@@ -260,18 +260,18 @@ class Estimator:
         self.odometry.anchor(stamp)
         self._reanchor(stamp)
         if not self.initialized and self.params.initial_pose is not None:
-            self._initialise_from_params(stamp)
+            self._initialise_from_params(stamp, self.params.initial_pose)
 
     def _try_initialise(self, obs: FixObservation) -> None:
         if self.params.initial_pose is not None:
-            self._initialise_from_params(obs.stamp)
+            self._initialise_from_params(obs.stamp, self.params.initial_pose)
             return
         alignment = self._bootstrap.alignment(obs.stamp)
         if alignment is not None:
             self._initialise(alignment)
 
-    def _initialise_from_params(self, stamp: float) -> None:
-        (x, y, yaw_deg), (sigma_m, sigma_deg) = self.params.initial_pose, self.params.initial_sigma
+    def _initialise_from_params(self, stamp: float, initial_pose: tuple[float, float, float]) -> None:
+        (x, y, yaw_deg), (sigma_m, sigma_deg) = initial_pose, self.params.initial_sigma
         cov = np.diag([sigma_m**2, sigma_m**2, math.radians(sigma_deg) ** 2])
         self._initialise(Alignment(stamp, np.array([x, y, math.radians(yaw_deg)]), cov))
 

@@ -4,10 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def wrap(angle: np.ndarray | float) -> np.ndarray | float:
-    """Angle wrapped to [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+from riverbench.angles import wrap_angle
 
 
 def rot2(yaw: float) -> np.ndarray:
@@ -66,22 +63,13 @@ def planar(T: np.ndarray, cov6: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def compose(pose: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """SE(2) pose (x, y, yaw) followed by a body-frame step (dx, dy, dyaw)."""
     xy = pose[:2] + rot2(pose[2]) @ delta[:2]
-    return np.array([xy[0], xy[1], float(wrap(pose[2] + delta[2]))])
+    return np.array([xy[0], xy[1], float(wrap_angle(pose[2] + delta[2]))])
 
 
 def between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Body-frame step from SE(2) pose a to pose b (inverse of compose)."""
     d = rot2(a[2]).T @ (b[:2] - a[:2])
-    return np.array([d[0], d[1], float(wrap(b[2] - a[2]))])
-
-
-def compose_jacobians(pose: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Jacobians of compose(pose, delta) with respect to pose and to delta."""
-    j_pose = np.eye(3)
-    j_pose[:2, 2] = drot2(pose[2]) @ delta[:2]
-    j_delta = np.eye(3)
-    j_delta[:2, :2] = rot2(pose[2])
-    return j_pose, j_delta
+    return np.array([d[0], d[1], float(wrap_angle(b[2] - a[2]))])
 
 
 def pose_matrix(x: float, y: float, z: float, yaw: float) -> np.ndarray:

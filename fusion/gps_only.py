@@ -21,11 +21,13 @@ from fusion.verdict import Verdict
 
 
 class GpsOnlyParams(EstimatorParams):
-    """course_min_m: GPS travel needed to update the course-over-ground heading [10 m]."""
+    """gps_only parameters on top of the shared ones: the receiver's output taken as it is."""
 
-    monitor: str = "none"
-    accept_dead_reckoning: bool = True
-    course_min_m: float = Field(10.0, gt=0)
+    monitor: str = Field("none", description="GPS integrity monitor; it only labels fixes, the pose is unchanged [none]")
+    accept_dead_reckoning: bool = Field(
+        True, description="use the receiver's own dead-reckoned output (GGA 6) as a fix [True: the receiver's output as it is]"
+    )
+    course_min_m: float = Field(10.0, gt=0, description="GPS travel needed to update the course-over-ground heading [10 m]")
 
 
 class GpsOnly(Estimator):
@@ -72,19 +74,25 @@ class GpsOnly(Estimator):
     def _restart(self) -> None:
         self._last = None
 
+    def _latest(self) -> FixObservation:
+        """The receiver's last output (asked for only once initialised, i.e. once there is one)."""
+        assert self._last is not None
+        return self._last
+
     def _pose3(self) -> np.ndarray:
-        xy = self._last.xy - rot2(self._yaw) @ self.lever
+        xy = self._latest().xy - rot2(self._yaw) @ self.lever
         return np.array([xy[0], xy[1], self._yaw])
 
     def _cov3(self) -> np.ndarray:
         cov = np.zeros((3, 3))
-        cov[:2, :2] = self._last.cov
+        cov[:2, :2] = self._latest().cov
         cov[2, 2] = self._yaw_var
         return cov
 
     def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         j = drot2(self._yaw) @ self.lever
-        return self._last.xy.copy(), self._last.cov + np.outer(j, j) * self._yaw_var, obs.cov
+        last = self._latest()
+        return last.xy.copy(), last.cov + np.outer(j, j) * self._yaw_var, obs.cov
 
     def _heading(self) -> tuple[float, float]:
         return self._yaw, self._yaw_var

@@ -12,17 +12,18 @@ from pydantic import Field
 
 from fusion.bootstrap import Alignment
 from fusion.estimator import Estimator
-from fusion.geometry import between, compose, drot2, rot2, wrap
+from fusion.geometry import between, compose, drot2, rot2
 from fusion.monitors import Monitor
 from fusion.observation import FixObservation
 from fusion.params import EstimatorParams
+from riverbench.angles import wrap_angle
 
 
 class HdopSwitchParams(EstimatorParams):
-    """realign_baseline_m: trusted GPS travel that re-aligns the odometry heading [20 m]."""
+    """hdop_switch parameters on top of the shared ones: the last trusted fix carried forward by odometry."""
 
-    monitor: str = "hdop"
-    realign_baseline_m: float = Field(20.0, gt=0)
+    monitor: str = Field("hdop", description="GPS integrity monitor deciding which fixes are trusted [hdop]")
+    realign_baseline_m: float = Field(20.0, gt=0, description="trusted GPS travel that re-aligns the odometry heading [20 m]")
 
 
 class HdopSwitch(Estimator):
@@ -41,7 +42,7 @@ class HdopSwitch(Estimator):
         self._anchor_stamp = 0.0
         self._anchor_cov = np.eye(3)
         self._segment: int | None = None
-        self._course: tuple[FixObservation, np.ndarray, int] | None = None
+        self._course: tuple[FixObservation, np.ndarray, int | None] | None = None  # fix, odometry pose, segment
 
     @property
     def initialized(self) -> bool:
@@ -50,7 +51,7 @@ class HdopSwitch(Estimator):
     def _initialise(self, alignment: Alignment) -> None:
         odo = self.odometry.pose_at(alignment.stamp)
         if odo is not None:
-            self._offset = float(wrap(alignment.pose[2] - odo[2]))
+            self._offset = float(wrap_angle(alignment.pose[2] - odo[2]))
             self._offset_var = alignment.cov[2, 2]
         self._anchor(alignment.stamp, alignment.pose, alignment.cov)
         self._init = True
@@ -69,6 +70,7 @@ class HdopSwitch(Estimator):
         now = self.odometry.pose_at(self.stamp)
         if now is None:
             now = self.odometry.last_pose
+        assert now is not None  # the track has a segment, so it has nodes
         pose = compose(self._anchor_world, between(self._anchor_odo, now))
         moved = self.odometry.displacement(self._anchor_stamp, self.stamp, np.zeros(2))
         cov = self._anchor_cov.copy()
@@ -88,6 +90,7 @@ class HdopSwitch(Estimator):
         if not self._init or self.odometry.segment is None:
             return
         pose, cov, end = self._anchor_world, self._anchor_cov, self.odometry.last_pose
+        assert end is not None  # the track has a segment, so it has nodes
         if self._anchor_odo is not None and self._segment == self.odometry.segment - 1:
             pose = compose(self._anchor_world, between(self._anchor_odo, end))
             cov = cov + np.diag(np.diag(self._default_odom_cov)[[0, 1, 5]])
@@ -104,10 +107,10 @@ class HdopSwitch(Estimator):
                 d_gps = obs.xy - self._course[0].xy
                 d_odo = odo[:2] - self._course[1][:2]
                 if float(np.linalg.norm(d_odo)) > 0.5 * self.params.realign_baseline_m:
-                    self._offset = float(wrap(math.atan2(d_gps[1], d_gps[0]) - math.atan2(d_odo[1], d_odo[0])))
+                    self._offset = float(wrap_angle(math.atan2(d_gps[1], d_gps[0]) - math.atan2(d_odo[1], d_odo[0])))
                     self._offset_var = 2.0 * float(np.trace(obs.cov)) / float(d_gps @ d_gps)
                 self._course = (obs, odo, segment)
-            yaw = float(wrap(odo[2] + self._offset))
+            yaw = float(wrap_angle(odo[2] + self._offset))
         else:
             yaw = float(self._dead_reckoned()[0][2])
         xy = obs.xy - rot2(yaw) @ self.lever

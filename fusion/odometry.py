@@ -6,7 +6,8 @@ import bisect
 
 import numpy as np
 
-from fusion.geometry import compose, rot2, wrap
+from fusion.geometry import compose, rot2
+from riverbench.angles import wrap_angle
 
 
 class OdometryTrack:
@@ -129,4 +130,4 @@ class OdometryTrack:
             G[:, 2] = (-arm[1], arm[0])
             cov = b[2] ** 2 * G @ self._covs[k] @ G.T
         start = pose_a[:2] + rot2(pose_a[2]) @ lever
-        return end - start, cov, float(wrap(pose_b[2]))
+        return end - start, cov, float(wrap_angle(pose_b[2]))

@@ -22,36 +22,41 @@ from pydantic import Field
 
 from fusion.bootstrap import Alignment
 from fusion.estimator import Estimator
-from fusion.geometry import between, wrap
+from fusion.geometry import between
 from fusion.monitors import Monitor
 from fusion.observation import FixObservation
 from fusion.params import MotionModelParams
+from riverbench.angles import wrap_angle
 from sim.rng import stream
 
 
 class PfParams(MotionModelParams):
-    """PF parameters on top of the shared ones (defaults in brackets).
+    """PF parameters on top of the shared motion and GPS model: particles, GPS likelihood, resampling, seed."""
 
-    n_particles [500]; gps_dof: Student-t degrees of freedom of the GPS likelihood [3];
-    motion and GPS white-noise parameters: see MotionModelParams, except lateral_accel_sigma [0.2]:
-    particles need the wider process noise to stay diverse (with the ekf's earlier 0.1 and 0.05 the
-    pf's median error over charles_river's first 700 s rose from 3.1 to 4.4 m); gps_correlation_s [0: fixes are independent Student-t draws; with a per-particle
-    Gauss-Markov bias each particle absorbs its own offset into its bias and the cloud drifts off,
-    p95 8.9 m against 4.0 m over charles_river's first 700 s]; resample_ess: resample when the effective sample size falls below this share
-    of n_particles [0.5]; resampling is regularised (Liu-West shrinkage and a kernel shaped like the
-    posterior, optimal bandwidth) plus a floor roughen_m / roughen_deg [0.02, 0.1];
-    seed: of the filter's random stream [0].
-    """
-
-    monitor: str = "none"
-    lateral_accel_sigma: float = Field(0.2, gt=0)
-    gps_correlation_s: float = Field(0.0, ge=0)
-    n_particles: int = Field(500, ge=10)
-    gps_dof: float = Field(3.0, gt=0)
-    resample_ess: float = Field(0.5, gt=0, le=1)
-    roughen_m: float = Field(0.02, ge=0)
-    roughen_deg: float = Field(0.1, ge=0)
-    seed: int = 0
+    monitor: str = Field("none", description="GPS integrity monitor [none: the Student-t likelihood copes with wrong fixes without a hard gate]")
+    lateral_accel_sigma: float = Field(
+        0.2, gt=0,
+        description="white-noise acceleration density of the sideways body velocity, m/s^2/sqrt(Hz) [0.2, not the "
+        "ekf's 0.05: particles need the wider process noise to stay diverse (with the ekf's earlier 0.1 and 0.05 the "
+        "pf's median error over charles_river's first 700 s rose from 3.1 to 4.4 m)]",
+    )
+    gps_correlation_s: float = Field(
+        0.0, ge=0,
+        description="time constant of the receiver's position error (see EstimatorParams) [0: fixes are independent "
+        "Student-t draws; with a per-particle Gauss-Markov bias each particle absorbs its own offset into its bias and "
+        "the cloud drifts off, p95 8.9 m against 4.0 m over charles_river's first 700 s]",
+    )
+    n_particles: int = Field(500, ge=10, description="number of particles [500]")
+    gps_dof: float = Field(3.0, gt=0, description="Student-t degrees of freedom of the GPS likelihood [3]")
+    resample_ess: float = Field(
+        0.5, gt=0, le=1,
+        description="resample when the effective sample size falls below this share of n_particles [0.5]; resampling "
+        "is regularised (Liu-West shrinkage and a kernel shaped like the posterior, optimal bandwidth) plus a floor "
+        "roughen_m / roughen_deg",
+    )
+    roughen_m: float = Field(0.02, ge=0, description="floor of the resampling kernel's position spread, m [0.02]")
+    roughen_deg: float = Field(0.1, ge=0, description="floor of the resampling kernel's heading spread, deg [0.1]")
+    seed: int = Field(0, description="seed of the filter's random stream [0]")
 
 
 def _rot_batch(yaw: np.ndarray) -> np.ndarray:
@@ -97,20 +102,20 @@ class Pf(Estimator):
         n = self.params.n_particles
         chol = np.linalg.cholesky(alignment.cov + 1e-12 * np.eye(3))
         self.poses = alignment.pose + self.rng.standard_normal((n, 3)) @ chol.T
-        self.poses[:, 2] = wrap(self.poses[:, 2])
+        self.poses[:, 2] = wrap_angle(self.poses[:, 2])
         velocity = self.odometry.velocity()
         mean, var = (np.zeros(3), np.array([1.0, 1.0, 0.01])) if velocity is None else (velocity[0], np.diag(velocity[1]))
         sigma = np.sqrt(np.clip(var, [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))  # as uncertain as the last step, within bounds
         self.vel = mean + self.rng.standard_normal((n, 3)) * sigma
         self.clones = self.poses.copy()
         self._clone_stamp = alignment.stamp
-        now = self.odometry.pose_at(alignment.stamp)
-        if now is not None and self.odometry.last_stamp == self._ref_stamp:
-            back = between(now, self.odometry.last_pose)  # from now back to the reference scan, body frame
+        now, last_pose, last_stamp = self.odometry.pose_at(alignment.stamp), self.odometry.last_pose, self.odometry.last_stamp
+        if now is not None and last_pose is not None and last_stamp is not None and last_stamp == self._ref_stamp:
+            back = between(now, last_pose)  # from now back to the reference scan, body frame
             rot = _rot_batch(self.poses[:, 2])
             self.clones = self.poses + np.einsum("nij,j->ni", rot, back)
-            self.clones[:, 2] = wrap(self.clones[:, 2])
-            self._clone_stamp = self.odometry.last_stamp
+            self.clones[:, 2] = wrap_angle(self.clones[:, 2])
+            self._clone_stamp = last_stamp
         self._coast_cov = np.zeros((3, 3))
         self.logw = np.full(n, -math.log(n))
         self.bias = np.zeros((n, 2))
@@ -127,7 +132,7 @@ class Pf(Estimator):
         c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
         self.poses[:, 0] += c * body[:, 0] - s * body[:, 1]
         self.poses[:, 1] += s * body[:, 0] + c * body[:, 1]
-        self.poses[:, 2] = wrap(self.poses[:, 2] + body[:, 2])
+        self.poses[:, 2] = wrap_angle(self.poses[:, 2] + body[:, 2])
         self.vel += dv
         self._coast_cov += np.diag(self._q) * dt**3 / 3.0
         if self._correlated():
@@ -143,7 +148,7 @@ class Pf(Estimator):
         cov_o = rot @ step_cov @ rot.transpose(0, 2, 1)
         cov_cv = rot @ (self._coast_cov + np.diag([1e-8, 1e-8, 1e-10])) @ rot.transpose(0, 2, 1)
         r = mu_o - self.poses
-        r[:, 2] = wrap(r[:, 2])
+        r[:, 2] = wrap_angle(r[:, 2])
         S = cov_cv + cov_o
         S_inv = np.linalg.inv(S)
         K = cov_cv @ S_inv
@@ -152,13 +157,13 @@ class Pf(Estimator):
         post = 0.5 * (post + post.transpose(0, 2, 1)) + 1e-14 * np.eye(3)
         chol = np.linalg.cholesky(post)
         self.poses = mean + np.einsum("nij,nj->ni", chol, self.rng.standard_normal((len(mean), 3)))
-        self.poses[:, 2] = wrap(self.poses[:, 2])
+        self.poses[:, 2] = wrap_angle(self.poses[:, 2])
         _, logdet = np.linalg.slogdet(S)
         self.logw += -0.5 * (np.einsum("ni,nij,nj->n", r, S_inv, r) + logdet)
         dt = stamp - self._clone_stamp
         if dt > 0:
             d = self.poses - self.clones
-            d[:, 2] = wrap(d[:, 2])
+            d[:, 2] = wrap_angle(d[:, 2])
             back = np.einsum("nji,nj->ni", rot, d)  # into each clone's body frame
             self.vel = back / dt
         self._after_weighting()
@@ -222,12 +227,12 @@ class Pf(Estimator):
             floor = np.diag([self.params.roughen_m**2, self.params.roughen_m**2, math.radians(self.params.roughen_deg) ** 2])
             chol = np.linalg.cholesky(h2 * spread + floor)
             offset = self.poses[idx] - mean
-            offset[:, 2] = wrap(offset[:, 2])
+            offset[:, 2] = wrap_angle(offset[:, 2])
             jitter = (shrink - 1.0) * offset + self.rng.standard_normal((n, 3)) @ chol.T
             self.poses = self.poses[idx] + jitter
-            self.poses[:, 2] = wrap(self.poses[:, 2])
+            self.poses[:, 2] = wrap_angle(self.poses[:, 2])
             self.clones = self.clones[idx] + jitter
-            self.clones[:, 2] = wrap(self.clones[:, 2])
+            self.clones[:, 2] = wrap_angle(self.clones[:, 2])
             self.vel = self.vel[idx]
             self.bias = self.bias[idx]
             self.logw = np.full(n, -math.log(n))
@@ -251,7 +256,7 @@ class Pf(Estimator):
             mean[angular] = math.atan2(float(w @ np.sin(values[:, angular])), float(w @ np.cos(values[:, angular])))
         d = values - mean
         if angular is not None:
-            d[:, angular] = wrap(d[:, angular])
+            d[:, angular] = wrap_angle(d[:, angular])
         return mean, (d * w[:, None]).T @ d
 
     def _restart(self) -> None:

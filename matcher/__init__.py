@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from importlib import import_module
+from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
@@ -49,7 +50,7 @@ def create(name: str, **params) -> Matcher:
     return _plugin(name)(validated)
 
 
-def _plugin(name: str) -> type:
+def _plugin(name: str) -> type[Any]:
     """The plugin matcher class `name` names (checked), or a ValueError listing the known names."""
     if not plugin.is_path(name) and name not in plugin.names(GROUP):
         raise ValueError(f"unknown matcher {name!r} (one of {', '.join(available())}, or a plugin 'package.module:Class')")

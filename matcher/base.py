@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
+from typing import Generic
 
 import numpy as np
 from pydantic import Field
 
 from matcher.cloud import Cloud
+from matcher.deskew import P
 from matcher.gate import GateParams, ScanGate
 from matcher.motion import ConstantVelocity, pose_to_xyzrpy
 from matcher.result import MatchResult
@@ -125,8 +127,8 @@ class Matcher(ABC):
         """Drop all state (after an internal error)."""
 
 
-class DeskewingMatcher(Matcher):
-    """A matcher whose reference is a scan prepared (de-skewed, filtered) with a motion prior.
+class DeskewingMatcher(Matcher, Generic[P]):
+    """A matcher whose reference is a scan prepared (de-skewed, filtered) with a motion prior (of type P).
 
     Keeps the reference and the scan just matched; a scan whose match failed is prepared again
     with the current prior before it becomes the reference, so that no reference is ever
@@ -134,12 +136,17 @@ class DeskewingMatcher(Matcher):
 
     def __init__(self, params: MatcherParams) -> None:
         super().__init__(params)
-        self._ref = None
-        self._cur = None
+        self._ref: P | None = None
+        self._cur: P | None = None
 
     @abstractmethod
-    def _prepare(self, cloud: Cloud, twist: np.ndarray | None):
+    def _prepare(self, cloud: Cloud, twist: np.ndarray | None) -> P:
         """`cloud` de-skewed with `twist` (per second; None: as it is) and made ready to match."""
+
+    def _reference(self) -> P:
+        """The prepared reference (`_start` sets it before any `_match`)."""
+        assert self._ref is not None
+        return self._ref
 
     def _start(self, cloud: Cloud) -> None:
         self._ref = self._prepare(cloud, None)
@@ -149,6 +156,7 @@ class DeskewingMatcher(Matcher):
 
     def _commit(self, ok: bool) -> None:
         cur = self._cur
+        assert cur is not None  # every _match keeps the scan it prepared
         if not ok and cur.twist is not self.velocity.twist_per_s:
             cur = self._prepare(cur.cloud, self.velocity.twist_per_s)
         self._ref, self._cur = cur, None

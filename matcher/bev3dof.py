@@ -122,6 +122,7 @@ class Bev3dof(Matcher):
         distorts both alike instead of feeding back into the next estimate. The reference keeps
         its twist (no re-render) until the motion prior has moved away from it noticeably."""
         ref = self._ref
+        assert ref is not None  # _start draws it
         if twist_changed(ref.twist, twist, dt):
             ref = ref.with_twist(twist)
         return ref, _Image.of(cloud, ref.twist, self.p)
@@ -131,6 +132,7 @@ class Bev3dof(Matcher):
 
     def _commit(self, ok: bool) -> None:
         cur = self._cur
+        assert cur is not None  # every _match keeps the image it drew
         self._ref, self._cur = (cur if ok else cur.with_twist(self.velocity.twist_per_s)), None
 
     # warps: W maps current-image pixels to previous-image pixels; in metres it is the 2-D pose
@@ -188,7 +190,10 @@ class Bev3dof(Matcher):
         p = self.p
         criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, p.ecc_iterations, p.ecc_eps)
         try:
-            cc, W = cv2.findTransformECC(cur, prev, W0[:2].astype(np.float32), cv2.MOTION_EUCLIDEAN, criteria, None, p.ecc_gauss_px)
+            # OpenCV's stubs type inputMask as a Mat in the form with gaussFiltSize; the binding takes None (no mask)
+            cc, W = cv2.findTransformECC(  # type: ignore[call-overload]
+                cur, prev, W0[:2].astype(np.float32), cv2.MOTION_EUCLIDEAN, criteria, None, p.ecc_gauss_px
+            )
         except cv2.error:  # OpenCV gives up when the images do not correlate
             return -np.inf, W0
         return float(cc), np.vstack([W.astype(np.float64), [0, 0, 1.0]])

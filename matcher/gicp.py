@@ -17,7 +17,8 @@ zero, to a quarter of the true one under the BU Bridge."""
 
 from __future__ import annotations
 
-from typing import Literal
+from collections.abc import Callable
+from typing import Any, Literal
 
 import numpy as np
 import small_gicp
@@ -27,13 +28,15 @@ from matcher.base import DeskewingMatcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.comoving import moving_with_sensor
 from matcher.covariance import (
+    Degeneracy,
     DegeneracyParams,
     FloorParams,
     covariance_from_hessian,
     left_perturbation_jacobian,
     to_xyzrpy,
 )
-from matcher.motion import deskew, se3_log, twist_changed
+from matcher.deskew import deskew_rounds
+from matcher.motion import deskew
 from matcher.planarity import planarity
 from matcher.pointplane import PlaneFit, point_to_plane_fit
 from matcher.remap import keep_prior_along
@@ -64,6 +67,10 @@ class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
     drop_comoving: bool = Field(True, description="drop returns from objects keeping station with the sensor, e.g. a chase boat (default true)")
 
 
+_Alignment = tuple[Any, PlaneFit, np.ndarray, Degeneracy]
+"""One de-skew round's small_gicp result, point-to-plane fit, parameter covariance and degeneracy."""
+
+
 class _NearestPlane:
     """small_gicp's k-d tree behind the `query` that matcher.pointplane expects (scipy's cKDTree's)."""
 
@@ -81,7 +88,7 @@ class _NearestPlane:
 class _Prepared:
     """A de-skewed, downsampled scan with covariances and its k-d tree."""
 
-    def __init__(self, cloud: Cloud, twist: np.ndarray | None, p: GicpParams, screen=None) -> None:
+    def __init__(self, cloud: Cloud, twist: np.ndarray | None, p: GicpParams, screen: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         self.cloud, self.twist = cloud, twist
         xyz = deskew(cloud.xyz, cloud.time, twist)
         self.moving = np.empty((0, 3))  # points dropped as moving with the sensor
@@ -101,7 +108,7 @@ class _Prepared:
         return point_to_plane_fit(self.xyz, T, ref.xyz, ref.normals, ref.nearest, p.max_correspondence_m, p.tukey_k_m, ref.normal_weight)
 
 
-class Gicp(DeskewingMatcher):
+class Gicp(DeskewingMatcher[_Prepared]):
     """small_gicp GICP of each scan against the previous good one."""
 
     name = "gicp"
@@ -110,15 +117,16 @@ class Gicp(DeskewingMatcher):
         super().__init__(params)
         self.p = params
 
-    def _prepare(self, cloud: Cloud, twist: np.ndarray | None, screen=None) -> _Prepared:
+    def _prepare(self, cloud: Cloud, twist: np.ndarray | None, screen: Callable[[np.ndarray], np.ndarray] | None = None) -> _Prepared:
         return _Prepared(cloud, twist, self.p, screen)
 
-    def _comoving_screen(self, prior: np.ndarray):
+    def _comoving_screen(self, prior: np.ndarray) -> Callable[[np.ndarray], np.ndarray] | None:
         """The mask of a de-skewed scan's points moving with the sensor, against the current reference, found
         on the first de-skew and kept for the later ones (a point stays where it was within a few cm); None: off."""
         if not self.p.drop_comoving:
             return None
-        ref, p, found = self._ref, self.p, []
+        ref, p = self._reference(), self.p
+        found: list[np.ndarray] = []
 
         def screen(xyz: np.ndarray) -> np.ndarray:
             if not found:
@@ -128,15 +136,12 @@ class Gicp(DeskewingMatcher):
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
-        prior = T = self.velocity.predict(dt)
-        twist = self.velocity.twist_per_s
-        ref = self._ref
+        prior = self.velocity.predict(dt)
         screen = self._comoving_screen(prior)
-        for _ in range(p.deskew_iterations):
-            cur = self._prepare(cloud, twist, screen)
+
+        def align(cur: _Prepared, ref: _Prepared, T: np.ndarray | None) -> tuple[np.ndarray, _Alignment] | None:
             if len(cur.xyz) < 6 or len(ref.xyz) < 6:
-                self._cur = cur
-                return MatchResult.failure("too few points after downsampling")
+                return None
             res = small_gicp.align(
                 ref.points, cur.points, ref.tree,
                 init_T_target_source=T,
@@ -150,16 +155,20 @@ class Gicp(DeskewingMatcher):
             fit = cur.plane_fit(ref, res.T_target_source, p)
             cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
             T = keep_prior_along(res.T_target_source, prior, fit.H, [d for d in degeneracy.directions if d[:3].any()])
-            new_twist = se3_log(T) / dt
-            if ref.twist is None:  # the first reference was never de-skewed: use this estimate
-                ref = self._prepare(ref.cloud, new_twist)
-            if not twist_changed(new_twist, twist, dt):
-                break
-            twist = new_twist
+            return T, (res, fit, cov_param, degeneracy)
+
+        ref, cur, aligned = deskew_rounds(
+            cloud, self._reference(), self.velocity.twist_per_s, prior, dt, p.deskew_iterations,
+            lambda c, twist: self._prepare(c, twist, screen), align, self._prepare,
+        )
+        if aligned is None:
+            self._cur = cur
+            return MatchResult.failure("too few points after downsampling")
         self._ref, self._cur = ref, cur
+        T, (res, fit, cov_param, degeneracy) = aligned
         n_src = len(cur.xyz)
         inlier_share = res.num_inliers / n_src
-        info = {
+        info: dict[str, Any] = {
             "converged": bool(res.converged),
             "iterations": int(res.iterations),  # of the last de-skew round
             "inlier_share": float(inlier_share),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from kiss_icp.config import KISSConfig
 from kiss_icp.kiss_icp import KissICP
@@ -63,6 +65,7 @@ class KissIcp(Matcher):
     def _run(self, cloud: Cloud) -> tuple[np.ndarray, np.ndarray]:
         """Register with kiss-icp: (map <- lidar frame at the stamp, the points it used, in the map)."""
         kiss = self._kiss
+        assert kiss is not None  # _start creates it
         delta = kiss.last_delta
         _, source = kiss.register_frame(cloud.xyz, cloud.time)
         pose_end = kiss.last_pose
@@ -81,7 +84,9 @@ class KissIcp(Matcher):
         self._ref_pose, self._ref_tree = pose, cKDTree(source)
 
     def _commit(self, ok: bool) -> None:
-        pose, tree, cloud = self._pending
+        pending = self._pending
+        assert pending is not None  # _match leaves its registration here
+        pose, tree, cloud = pending
         self._pending = None
         if ok:
             self._ref_pose, self._ref_tree = pose, tree
@@ -89,17 +94,18 @@ class KissIcp(Matcher):
             self._start(cloud)
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
-        kiss = self._kiss
+        kiss, ref_pose, ref_tree = self._kiss, self._ref_pose, self._ref_tree
+        assert kiss is not None and ref_pose is not None and ref_tree is not None  # _start sets them
         self._period = dt if self._period is None else min(self._period, dt)
         gap = dt / self._period
         if gap > 1.5:  # scans were dropped: advance kiss-icp's pose over them at constant velocity
             kiss.last_pose = kiss.last_pose @ se3_exp((gap - 1.0) * se3_log(kiss.last_delta))
         pose, source = self._run(cloud)
-        T = np.linalg.inv(self._ref_pose) @ pose
-        dist, _ = self._ref_tree.query(source, distance_upper_bound=3.0 * self.p.voxel_m)
+        T = np.linalg.inv(ref_pose) @ pose
+        dist, _ = ref_tree.query(source, distance_upper_bound=3.0 * self.p.voxel_m)
         overlap = float(np.isfinite(dist).mean()) if len(source) else 0.0
         self._pending = (pose, cKDTree(source), cloud)
-        info = {"overlap": overlap, "points_used": int(len(source)), "adaptive_threshold": float(kiss.adaptive_threshold.get_threshold())}
+        info: dict[str, Any] = {"overlap": overlap, "points_used": int(len(source)), "adaptive_threshold": float(kiss.adaptive_threshold.get_threshold())}
         if overlap < self.p.min_overlap:
             return MatchResult.failure(f"overlap {overlap:.2f} < min_overlap {self.p.min_overlap}", **info)
         return MatchResult(T=T, ok=True, cov=None, n_points=0, seconds=0.0, info=info)

@@ -16,7 +16,8 @@ from scipy.spatial import cKDTree
 from matcher.base import DeskewingMatcher, MatcherParams
 from matcher.cloud import Cloud
 from matcher.covariance import DegeneracyParams, FloorParams, covariance_from_hessian, left_perturbation_jacobian, to_xyzrpy
-from matcher.motion import deskew, planar, se3_log, transform, twist_changed
+from matcher.deskew import deskew_rounds
+from matcher.motion import deskew, planar, transform
 from matcher.pointplane import point_to_plane_fit
 from matcher.result import MatchResult
 
@@ -87,7 +88,7 @@ class _Prepared:
         return self._features
 
 
-class Pcl6d(DeskewingMatcher):
+class Pcl6d(DeskewingMatcher[_Prepared]):
     """Method 1: filter, FPFH + RANSAC pre-alignment, robust point-to-plane ICP."""
 
     name = "pcl6d"
@@ -172,21 +173,21 @@ class Pcl6d(DeskewingMatcher):
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
         twist = self.velocity.twist_per_s
-        T = None if twist is None else self.velocity.predict(dt)
-        ref = self._ref
-        for _ in range(p.deskew_iterations):
-            cur = self._prepare(cloud, twist)
-            self._cur = cur
+
+        def align(cur: _Prepared, ref: _Prepared, T: np.ndarray | None) -> tuple[np.ndarray, dict] | None:
             if len(cur.points) < 10 or len(ref.points) < 10:
-                return MatchResult.failure("too few points after filtering")
-            T, info = self._align(cur, ref, T, dt)
-            new_twist = se3_log(T) / dt
-            if ref.twist is None:  # the first reference was never de-skewed: use this estimate
-                ref = self._prepare(ref.cloud, new_twist)
-            if not twist_changed(new_twist, twist, dt):
-                break
-            twist = new_twist
+                return None
+            return self._align(cur, ref, T, dt)
+
+        ref, cur, aligned = deskew_rounds(
+            cloud, self._reference(), twist, None if twist is None else self.velocity.predict(dt), dt, p.deskew_iterations,
+            self._prepare, align,
+        )
+        self._cur = cur
+        if aligned is None:
+            return MatchResult.failure("too few points after filtering")
         self._ref = ref
+        T, info = aligned
         fit = point_to_plane_fit(cur.points, T, ref.points, ref.normals, ref.tree, p.icp_max_correspondence_m, p.tukey_k_m)
         info.update(fitness=fit.fitness, outlier_share=fit.outlier_share, points_used=len(cur.points), sigma2=fit.sigma2)
         if fit.fitness < p.min_fitness:

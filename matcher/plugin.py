@@ -13,6 +13,7 @@ from __future__ import annotations
 import inspect
 from importlib import import_module
 from importlib.metadata import EntryPoint, entry_points
+from typing import Any
 
 from pydantic import BaseModel
 
@@ -31,7 +32,7 @@ def names(group: str) -> list[str]:
 
 
 def load(ref: str, group: str, what: str, methods: tuple[str, ...], properties: tuple[str, ...] = (),
-         params: type[BaseModel] = BaseModel) -> type:
+         params: type[BaseModel] = BaseModel) -> type[Any]:
     """The class `ref` names ('package.module:Class' or an entry-point name in `group`), checked to have
     every method and property listed and a `Params` model subclassing `params`."""
     where = f"{what} plugin {ref!r}"
@@ -43,14 +44,15 @@ def load(ref: str, group: str, what: str, methods: tuple[str, ...], properties: 
     if missing:
         raise ValueError(f"{where}: class {cls.__name__} lacks {', '.join(missing)}")
     if inspect.isabstract(cls):
-        raise ValueError(f"{where}: class {cls.__name__} is abstract: it does not implement {', '.join(sorted(cls.__abstractmethods__))}")
+        abstract = sorted(getattr(cls, "__abstractmethods__", ()))
+        raise ValueError(f"{where}: class {cls.__name__} is abstract: it does not implement {', '.join(abstract)}")
     model = getattr(cls, "Params", None)
     if not (inspect.isclass(model) and issubclass(model, params)):
         raise ValueError(f"{where}: class {cls.__name__} lacks a parameter model: a class attribute Params subclassing {params.__name__}")
     return cls
 
 
-def _import_path(ref: str, where: str) -> object:
+def _import_path(ref: str, where: str) -> Any:
     """What 'package.module:Class' names (nested names with dots)."""
     module_name, _, qualname = ref.partition(":")
     try:
@@ -65,7 +67,7 @@ def _import_path(ref: str, where: str) -> object:
     return found
 
 
-def _import_entry_point(name: str, group: str, where: str) -> object:
+def _import_entry_point(name: str, group: str, where: str) -> Any:
     """What the entry point `name` of `group` names; two packages registering it differently is an error."""
     found: dict[str, EntryPoint] = {ep.value: ep for ep in entry_points(group=group, name=name)}
     if not found:

@@ -1,8 +1,16 @@
-"""riverbench's ground floor: what every package may import and that imports nothing of ours (version, errors, atomic writes, provenance)."""
+"""riverbench: the ground floor every package may import and that imports nothing of ours.
+
+`__version__` is the installed distribution's version ('0+unknown' when it is not installed);
+`riverbench.angles` wraps angles, one formula for every package; errors, atomic writes and provenance live here too.
+"""
+
+from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
 try:
     __version__ = version("riverbench")
-except PackageNotFoundError:  # run from a source tree without installing
+except PackageNotFoundError:
     __version__ = "0+unknown"
+
+__all__ = ["__version__"]

@@ -19,6 +19,7 @@ from collections import deque
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from riverbench.angles import wrap_angle
 from sim.dynamics import WamvDynamics
 from worlds.route import Route
 
@@ -66,13 +67,13 @@ class Autopilot:
         rate_ref = self.speed_mps * float(np.interp(station, self.route.s, self._curvature))
         d = self.dynamics
         hold = (d.n_r * rate_ref + d.n_rr * abs(rate_ref) * rate_ref) / (2.0 * d.thruster_y_m * d.max_thrust_fwd_n)
-        turn = cfg.heading_kp * _wrap(desired - yaw) + cfg.heading_kd * (rate_ref - rate) + hold
+        turn = cfg.heading_kp * wrap_angle(desired - yaw) + cfg.heading_kd * (rate_ref - rate) + hold
         return float(np.clip(base - turn, -1.0, 1.0)), float(np.clip(base + turn, -1.0, 1.0))
 
     def _yaw_rate(self, t: float, yaw: float) -> float:
         if self._heading is not None and t > self._heading[0]:
             dt = t - self._heading[0]
-            self._rate += (1.0 - math.exp(-dt / self.config.rate_filter_s)) * (_wrap(yaw - self._heading[1]) / dt - self._rate)
+            self._rate += (1.0 - math.exp(-dt / self.config.rate_filter_s)) * (wrap_angle(yaw - self._heading[1]) / dt - self._rate)
         self._heading = (t, yaw)
         return self._rate
 
@@ -89,8 +90,3 @@ class Autopilot:
             self._integral = float(np.clip(self._integral + (self.speed_mps - self._speed) * dt, -10.0, 10.0))
         base = self.cruise + cfg.speed_kp * (self.speed_mps - self._speed) + cfg.speed_ki * self._integral
         return float(np.clip(base, -1.0, 1.0))
-
-
-def _wrap(angle: float) -> float:
-    """Angle in (-pi, pi]."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi

@@ -62,7 +62,9 @@ def boat_mesh(shape: BoatShape) -> trimesh.Trimesh:
     hull = trimesh.convex.convex_hull(points)
     cabin = trimesh.creation.box(extents=(shape.cabin_length_m, shape.cabin_width_m, shape.cabin_height_m))
     cabin.apply_translation((shape.cabin_x_m, 0.0, shape.freeboard_m + shape.cabin_height_m / 2))
-    return trimesh.util.concatenate([hull, cabin])
+    mesh = trimesh.util.concatenate([hull, cabin])
+    assert isinstance(mesh, trimesh.Trimesh)  # concatenating meshes gives a mesh
+    return mesh
 
 
 def boat(kind: str) -> tuple[trimesh.Trimesh, Material]:

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from riverbench.angles import wrap_angle
 from sim.rng import stream
 
 
@@ -25,7 +26,7 @@ class Compass:
         dt = min(dt, t - since)
         before, now = trajectory.poses(np.array([t - dt, t]))
         yaw = math.atan2(now[1, 0], now[0, 0])
-        step = (yaw - math.atan2(before[1, 0], before[0, 0]) + math.pi) % (2.0 * math.pi) - math.pi
+        step = wrap_angle(yaw - math.atan2(before[1, 0], before[0, 0]))
         rate = step / dt if dt > 0 else 0.0
         noise = self._rng.standard_normal(2)
         return yaw + self.sigma * float(noise[0]), rate + self.rate_sigma * float(noise[1])

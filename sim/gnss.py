@@ -39,8 +39,8 @@ class OutageWindow(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    start_s: float
-    end_s: float
+    start_s: float = Field(description="start of the window, scenario time, s (inclusive)")
+    end_s: float = Field(description="end of the window, scenario time, s (exclusive; after start_s)")
 
     @model_validator(mode="after")
     def _ordered(self) -> "OutageWindow":
@@ -50,16 +50,15 @@ class OutageWindow(BaseModel):
 
 
 class BiasWindow(OutageWindow):
-    """A forced fault for start_s <= t < end_s on top of the physics.
+    """A forced fault for start_s <= t < end_s on top of the physics: a position offset and/or one satellite's range bias."""
 
-    enu_m shifts the raw position solution by this ENU offset (applied through the pseudoranges,
-    -u_i . offset on satellite i, so DOP and residuals stay consistent); prn with range_m adds a
-    range bias to one satellite (a classic integrity-monitor test).
-    """
-
-    enu_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    prn: int | None = Field(None, ge=1)
-    range_m: float = 0.0
+    enu_m: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0),
+        description="shifts the raw position solution by this ENU offset, m (applied through the pseudoranges, "
+        "-u_i . offset on satellite i, so DOP and residuals stay consistent; default none)",
+    )
+    prn: int | None = Field(None, ge=1, description="satellite that range_m biases (a classic integrity-monitor test; default none)")
+    range_m: float = Field(0.0, description="range bias added to satellite prn, m (default 0)")
 
 
 class MultipathConfig(BaseModel):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from riverbench.angles import wrap_angle
 from sim.movers import rigid_inverse
 from sim.traffic import Traffic
 
@@ -34,10 +35,6 @@ def _knots(n_firings: int, step: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     knot = np.r_[firing[::step], firing[-1]] if n_firings % step else firing[::step]
     index = np.minimum(firing // step, len(knot) - 2)
     return knot, index, (firing - knot[index]) / np.diff(knot)[index]
-
-
-def _wrapped(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
 class MoverRays:
@@ -139,7 +136,7 @@ class MoverRays:
             half_az = np.where(horizontal > r, np.arcsin(np.minimum(r / horizontal, 1.0)), np.pi)
             half_cone = np.where(inside, np.pi, np.arcsin(np.minimum(r / dist, 1.0)))
         elevation = np.arctan2(p[..., 2], horizontal)
-        keep = np.abs(_wrapped(np.arctan2(p[..., 1], p[..., 0]) - self.az_mid)) <= half_az + self.az_half
+        keep = np.abs(wrap_angle(np.arctan2(p[..., 1], p[..., 0]) - self.az_mid)) <= half_az + self.az_half
         keep &= (elevation + half_cone >= self.el_lo) & (elevation - half_cone <= self.el_hi) & (dist - r <= max_range_m)
         mi, ji = np.nonzero(keep)  # candidate (mover, interval) pairs
         # cells whose middle is within the cone widened by the cell's own azimuth half-width

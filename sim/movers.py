@@ -107,7 +107,7 @@ class Chase:
     It asks the vessel only for times <= the time asked and >= `t_start` (where the vessel's trajectory begins),
     so a closed-loop vessel that knows only its past can be chased."""
 
-    vessel: object
+    vessel: Motion
     distance_m: float
     lateral_m: float
     lag_s: float = 0.0

@@ -97,8 +97,10 @@ class CvKalman:
 
     @property
     def position(self) -> np.ndarray:
+        assert self.x is not None  # asked for only once initialised
         return self.x[:3].copy()
 
     @property
     def velocity(self) -> np.ndarray:
+        assert self.x is not None  # asked for only once initialised
         return self.x[3:].copy()

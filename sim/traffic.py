@@ -13,10 +13,11 @@ from dataclasses import dataclass
 from typing import Annotated, Literal
 
 import numpy as np
+import numpy.typing as npt
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sim.boats import BoatKind, boat
-from sim.movers import AlongRoute, Chase, Crossing, Mover, rigid_inverse
+from sim.movers import AlongRoute, Chase, Crossing, Motion, Mover, rigid_inverse
 from sim.multipath import Reflections
 
 LANDING_MARGIN_M = 5.0
@@ -44,7 +45,7 @@ class Traffic:
         """905 nm reflectivity per mover (float32)."""
         return np.array([m.material.reflectivity for m in self.movers], dtype=np.float32)
 
-    def poses(self, ts: np.ndarray) -> np.ndarray:
+    def poses(self, ts: npt.ArrayLike) -> np.ndarray:
         """(M, N, 4, 4) world<-body of every mover at times ts (N,)."""
         ts = np.atleast_1d(np.asarray(ts, dtype=float))
         return np.stack([m.poses(ts) for m in self.movers]) if self.movers else np.zeros((0, len(ts), 4, 4))
@@ -81,7 +82,7 @@ class _MoverConfig(BaseModel):
 class ChaseConfig(_MoverConfig):
     """A chase boat following the ASV at a set distance and lateral offset (the field study's ASV was driven from one)."""
 
-    kind: Literal["chase"] = "chase"
+    kind: Literal["chase"] = Field("chase", description="mover kind: chase, crossing or along")
     boat: BoatKind = Field("runabout", description="boat kind: runabout (5.5 m), cruiser (10 m), barge (30 m, 7.5 m wheelhouse)")
     distance_m: float = Field(15.0, gt=0, description="centre behind the ASV's base_link, along its heading, m")
     lateral_m: float = Field(-6.0, description="centre to the ASV's left, m (negative: to its right)")
@@ -91,7 +92,7 @@ class ChaseConfig(_MoverConfig):
 class CrossingConfig(_MoverConfig):
     """A boat crossing the river straight across the route at a chosen station and time, waiting at its landings."""
 
-    kind: Literal["crossing"] = "crossing"
+    kind: Literal["crossing"] = Field("crossing", description="mover kind: chase, crossing or along")
     station_m: float = Field(..., ge=0, description="route station where it crosses the centreline, m")
     time_s: float = Field(..., ge=0, description="scenario time at which it crosses the centreline, s")
     speed_mps: float = Field(3.0, gt=0, le=15, description="speed over ground, m/s")
@@ -107,7 +108,7 @@ class CrossingConfig(_MoverConfig):
 class AlongConfig(_MoverConfig):
     """A boat along the route at constant speed: overtaking (faster than the ASV, same way) or oncoming."""
 
-    kind: Literal["along"] = "along"
+    kind: Literal["along"] = Field("along", description="mover kind: chase, crossing or along")
     station_m: float = Field(..., ge=0, description="route station where it is at time_s, m")
     time_s: float = Field(..., ge=0, description="scenario time at which it is at station_m, s")
     speed_mps: float = Field(4.0, gt=0, le=15, description="speed over ground, m/s")
@@ -142,6 +143,7 @@ def build_traffic(config: TrafficConfig | None, world, trajectory, t_start: floa
     movers = []
     for spec in config.movers if config is not None else ():
         mesh, material = boat(spec.boat)
+        motion: Motion
         if spec.kind == "chase":
             motion = Chase(trajectory, spec.distance_m, spec.lateral_m, spec.lag_s, t_start)
         elif spec.kind == "crossing":
@@ -149,5 +151,6 @@ def build_traffic(config: TrafficConfig | None, world, trajectory, t_start: floa
             motion = Crossing.across(world.route, spec.station_m, spec.time_s, spec.speed_mps, spec.angle_deg, margin)
         else:
             motion = AlongRoute(world.route, spec.station_m, spec.time_s, spec.speed_mps, spec.lateral_m, spec.oncoming)
+        assert spec.id is not None  # TrafficConfig names every mover
         movers.append(Mover(spec.id, mesh, material, motion))
     return Traffic(tuple(movers))

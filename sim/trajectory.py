@@ -47,6 +47,10 @@ class VesselPoses:
     config: TrajectoryConfig
     mount: np.ndarray
 
+    def poses(self, ts: np.ndarray) -> np.ndarray:
+        """(N, 4, 4) world<-base_link at times ts (N,): the subclass's motion."""
+        raise NotImplementedError
+
     @cached_property
     def hull(self) -> trimesh.Trimesh:
         """The vessel body in base_link, up to the LiDAR mount (what the sensor cannot see through)."""

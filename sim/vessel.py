@@ -39,7 +39,9 @@ def hull_mesh(cfg: HullConfig, mast_top_m: float) -> trimesh.Trimesh:
     if mast_top_m > cfg.tray_top_m:
         h = mast_top_m - cfg.tray_top_m
         parts.append(_box((cfg.mast_size_m, cfg.mast_size_m, h), (0.0, 0.0, cfg.tray_top_m + h / 2)))
-    return trimesh.util.concatenate(parts)
+    hull = trimesh.util.concatenate(parts)
+    assert isinstance(hull, trimesh.Trimesh)  # concatenating meshes gives a mesh
+    return hull
 
 
 def _box(extents: tuple[float, float, float], centre: tuple[float, float, float]) -> trimesh.Trimesh:

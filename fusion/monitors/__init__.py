@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any, TypeVar
+
 from pydantic import BaseModel, ValidationError
 
 from fusion.monitors.base import FixContext, Monitor
@@ -13,7 +16,7 @@ from fusion.monitors.nis import NisMonitor, NisParams
 from fusion.monitors.none import NoMonitor, NoneParams
 from matcher import plugin
 
-_MONITORS: dict[str, tuple[type[Monitor], type[BaseModel]]] = {
+_MONITORS: dict[str, tuple[Callable[..., Monitor], type[BaseModel]]] = {  # (class, its parameter model)
     "hdop": (HdopMonitor, HdopParams),
     "nis": (NisMonitor, NisParams),
     "consistency": (ConsistencyMonitor, ConsistencyParams),
@@ -25,13 +28,15 @@ _MONITORS: dict[str, tuple[type[Monitor], type[BaseModel]]] = {
 GROUP = "riverbench.monitors"
 """The entry-point group in which installed packages register monitors."""
 
+M = TypeVar("M", bound=BaseModel)
+
 
 def available() -> list[str]:
     """Names create() knows: the built-in monitors, then those installed plugins register."""
     return sorted(_MONITORS) + [name for name in plugin.names(GROUP) if name not in _MONITORS]
 
 
-def validate_params(model: type[BaseModel], params: dict, what: str) -> BaseModel:
+def validate_params(model: type[M], params: dict, what: str) -> M:
     """Validate params with a pydantic model; a bad key or value is a one-line ValueError naming it."""
     try:
         return model(**params)
@@ -51,6 +56,7 @@ def create(name: str, **params) -> Monitor:
     cls = _MONITORS[name][0] if name in _MONITORS else _plugin(name)
     p = validate_params(params_model(name), params, f"monitor '{name}'")
     if cls is CombinedMonitor:
+        assert isinstance(p, CombinedParams)  # the only models _MONITORS pairs with CombinedMonitor
         nested = [m for m in p.members if m in _MONITORS and _MONITORS[m][0] is CombinedMonitor]
         if nested:
             raise ValueError(f"monitor '{name}': parameter 'members' cannot contain '{nested[0]}'")
@@ -61,7 +67,7 @@ def create(name: str, **params) -> Monitor:
     return cls(p)
 
 
-def _plugin(name: str) -> type:
+def _plugin(name: str) -> type[Any]:
     """The plugin monitor class `name` names (checked), or a ValueError listing the known names."""
     if not plugin.is_path(name) and name not in plugin.names(GROUP):
         raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())}, or a plugin 'package.module:Class')")

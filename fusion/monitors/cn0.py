@@ -42,26 +42,40 @@ from fusion.verdict import Verdict
 
 
 class Cn0Params(BaseModel):
-    """Defaults: 9 bins of sin(elevation) over [0, 1]; 600 samples kept per bin (about 10 minutes of
-    one satellite at 1 Hz, or a minute of a bin shared by a few satellites at 5 Hz); a bin counts
-    once it holds 40 samples and the template needs 3 such bins; mid_q 0.75 and high_q 0.9 (the
-    direct signals' upper part: robust to up to about a quarter of a bin's samples being NLOS);
-    2 fitting iterations; sigma floored at 0.5 dB (receivers report C/N0 in whole dB); gate 4 sigma
-    (a direct signal with Gaussian jitter exceeds it with probability 3e-5; a 1 dB jitter puts the
-    gate at 4 dB, half a typical 8 dB reflection loss); a deficit is held for 6 s (a consumer
-    receiver's filter halves a raw fault's effect on its output in about 4 s; 0 = no hold)."""
+    """Parameters of the 'cn0' monitor: the elevation template learned online and the NLOS gate (see the module docstring)."""
 
     model_config = ConfigDict(extra="forbid")
-    bins: int = Field(9, ge=2)
-    samples_per_bin: int = Field(600, ge=10)
-    min_samples_per_bin: int = Field(40, ge=5)
-    min_bins: int = Field(3, ge=2)
-    mid_q: float = Field(0.75, gt=0.5, lt=1.0)
-    high_q: float = Field(0.9, gt=0.5, lt=1.0)
-    iterations: int = Field(2, ge=1)
-    min_sigma_db: float = Field(0.5, gt=0)
-    gate_sigma: float = Field(4.0, gt=0)
-    hold_s: float = Field(6.0, ge=0)
+    bins: int = Field(9, ge=2, description="number of sin(elevation) bins over [0, 1] [9]")
+    samples_per_bin: int = Field(
+        600, ge=10,
+        description="samples kept per bin [600: about 10 minutes of one satellite at 1 Hz, or a minute of a bin shared "
+        "by a few satellites at 5 Hz]",
+    )
+    min_samples_per_bin: int = Field(40, ge=5, description="a bin counts once it holds this many samples [40]")
+    min_bins: int = Field(3, ge=2, description="the template needs this many counting bins; until then fixes are trusted (learning) [3]")
+    mid_q: float = Field(
+        0.75, gt=0.5, lt=1.0,
+        description="lower quantile of a bin's direct signals [0.75: with high_q the direct signals' upper part, robust "
+        "to up to about a quarter of a bin's samples being NLOS]",
+    )
+    high_q: float = Field(
+        0.9, gt=0.5, lt=1.0,
+        description="upper quantile of a bin's direct signals, above mid_q [0.9: with mid_q the direct signals' upper "
+        "part, robust to up to about a quarter of a bin's samples being NLOS]",
+    )
+    iterations: int = Field(2, ge=1, description="template fitting iterations (quantiles taken about the previous line) [2]")
+    min_sigma_db: float = Field(0.5, gt=0, description="floor of the C/N0 jitter sigma, dB [0.5: receivers report C/N0 in whole dB]")
+    gate_sigma: float = Field(
+        4.0, gt=0,
+        description="a used satellite whose C/N0 falls more than this many sigma below the template looks NLOS [4: a "
+        "direct signal with Gaussian jitter exceeds it with probability 3e-5; a 1 dB jitter puts the gate at 4 dB, half "
+        "a typical 8 dB reflection loss]",
+    )
+    hold_s: float = Field(
+        6.0, ge=0,
+        description="a deficit is held this long, s [6: a consumer receiver's filter halves a raw fault's effect on its "
+        "output in about 4 s; 0 = no hold]",
+    )
 
     @model_validator(mode="after")
     def _ordered(self) -> "Cn0Params":

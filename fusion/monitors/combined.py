@@ -13,19 +13,24 @@ from fusion.verdict import Verdict
 
 
 class CombinedParams(BaseModel):
-    """members: monitor names combined by OR; member_params: parameters per member name."""
+    """Parameters of the 'combined' monitor: which monitors it ORs and their parameters."""
 
     model_config = ConfigDict(extra="forbid")
-    members: list[str] = Field(default_factory=lambda: ["nis", "consistency"], min_length=1)
-    member_params: dict[str, dict] = Field(default_factory=dict)
+    members: list[str] = Field(
+        default_factory=lambda: ["nis", "consistency"], min_length=1, description="monitor names combined by OR [nis, consistency]"
+    )
+    member_params: dict[str, dict] = Field(default_factory=dict, description="parameters per member name [{}: each member's defaults]")
 
 
 class CombinedCn0Params(CombinedParams):
-    """The same with members consistency + cn0 by default: the best combination measured by
-    benchmarks/monitors.py (charles_river and canal_lock, gicp odometry): cn0 catches the fixes that
-    use NLOS satellites, consistency the re-acquisition after an outage and displacement jumps."""
+    """Parameters of the 'combined_cn0' monitor: 'combined' with consistency + cn0 as its default members."""
 
-    members: list[str] = Field(default_factory=lambda: ["consistency", "cn0"], min_length=1)
+    members: list[str] = Field(
+        default_factory=lambda: ["consistency", "cn0"], min_length=1,
+        description="monitor names combined by OR [consistency, cn0: the best combination measured by "
+        "benchmarks/monitors.py (charles_river and canal_lock, gicp odometry): cn0 catches the fixes that use NLOS "
+        "satellites, consistency the re-acquisition after an outage and displacement jumps]",
+    )
 
 
 class CombinedMonitor(Monitor):

@@ -15,6 +15,9 @@ untrusted for at least `guard_s` and until `guard_n` consecutive fixes pass both
 tighter `guard_gate_prob` gate (the receiver's track moves with the odometry again and agrees with
 the reference). The window test for the verdict uses trusted fixes only, so the end of a fault is
 not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard.
+Two fixes dt apart have errors correlated by rho = exp(-dt / correlation_s) (the host's
+gps_correlation_s), so their displacement's noise is (C_a + C_b)(1 - rho), floored; the
+reference weighs each trusted fix as a share dt / correlation_s of an independent one.
 """
 
 from __future__ import annotations
@@ -33,26 +36,30 @@ from fusion.verdict import Verdict
 
 
 class ConsistencyParams(BaseModel):
-    """Defaults: window 2 s, gate 0.999 (13.8), reference dropped after 60 s without a trusted fix,
-    guard after a 2 s gap for at least 5 s and until 5 consecutive fixes pass both tests under the
-    0.9 gate (4.6);
-    max_speed_mps bounds the unknown motion where the odometry does not cover a step [5 m/s];
-    min_diff_sigma_m floors the per-axis noise of a GPS displacement [0.3 m].
-
-    Two fixes dt apart have errors correlated by rho = exp(-dt / correlation_s) (the host's
-    gps_correlation_s), so their displacement's noise is (C_a + C_b)(1 - rho), floored; the
-    reference weighs each trusted fix as a share dt / correlation_s of an independent one."""
+    """Parameters of the 'consistency' monitor: window and reference displacement tests and the re-acquisition guard."""
 
     model_config = ConfigDict(extra="forbid")
-    window_s: float = Field(2.0, gt=0)
-    gate_prob: float = Field(0.999, gt=0.5, lt=1.0)
-    reference_max_age_s: float = Field(60.0, gt=0)
-    gap_s: float = Field(2.0, gt=0)
-    guard_s: float = Field(5.0, ge=0)
-    guard_n: int = Field(5, ge=0)
-    guard_gate_prob: float = Field(0.9, gt=0.5, lt=1.0)
-    max_speed_mps: float = Field(5.0, gt=0)
-    min_diff_sigma_m: float = Field(0.3, gt=0)
+    window_s: float = Field(2.0, gt=0, description="the window test compares a fix with the fix about this long earlier, s [2]")
+    gate_prob: float = Field(0.999, gt=0.5, lt=1.0, description="chi-square (2 dof) probability of both tests' gate [0.999, gate at 13.8]")
+    reference_max_age_s: float = Field(
+        60.0, gt=0, description="the reference is dropped and rebuilt after this long without a trusted fix, s [60]"
+    )
+    gap_s: float = Field(
+        2.0, gt=0, description="a stretch at least this long without a measured fix (a blackout, or start-up) starts the guard, s [2]"
+    )
+    guard_s: float = Field(5.0, ge=0, description="fixes stay untrusted for at least this long after such a gap, s [5]")
+    guard_n: int = Field(
+        5, ge=0, description="during the guard, fixes also stay untrusted until this many consecutive ones pass both tests under the guard gate [5]"
+    )
+    guard_gate_prob: float = Field(
+        0.9, gt=0.5, lt=1.0, description="chi-square (2 dof) probability of the tighter gate during the guard [0.9, gate at 4.6]"
+    )
+    max_speed_mps: float = Field(5.0, gt=0, description="bounds the unknown motion where the odometry does not cover a step, m/s [5]")
+    min_diff_sigma_m: float = Field(
+        0.3, gt=0,
+        description="floor of the per-axis noise of a GPS displacement, whose noise is (C_a + C_b)(1 - rho) for two fixes "
+        "dt apart with errors correlated by rho = exp(-dt / correlation_s), m [0.3]",
+    )
 
 
 class ConsistencyMonitor(Monitor):
@@ -137,9 +144,8 @@ class ConsistencyMonitor(Monitor):
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
-        in_guard = (gap or self._guard_start is not None) and (
-            obs.stamp - (obs.stamp if gap else self._guard_start) < self.params.guard_s or passes < self.params.guard_n
-        )
+        guard_from = obs.stamp if gap else self._guard_start  # None: no guard running
+        in_guard = guard_from is not None and (obs.stamp - guard_from < self.params.guard_s or passes < self.params.guard_n)
         if tests and statistic > self.gate:
             which = "window" if window_d2 == statistic else "reference"
             return Verdict(False, statistic, f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}")

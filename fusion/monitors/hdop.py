@@ -10,10 +10,10 @@ from fusion.verdict import Verdict
 
 
 class HdopParams(BaseModel):
-    """max_hdop: fixes with a larger HDOP are distrusted (default 2.0, a common consumer setting)."""
+    """Parameters of the 'hdop' monitor (the baseline: HDOP alone)."""
 
     model_config = ConfigDict(extra="forbid")
-    max_hdop: float = Field(2.0, gt=0)
+    max_hdop: float = Field(2.0, gt=0, description="fixes with a larger HDOP are distrusted [2.0, a common consumer setting]")
 
 
 class HdopMonitor(Monitor):

@@ -13,10 +13,10 @@ from fusion.verdict import Verdict
 
 
 class NisParams(BaseModel):
-    """gate_prob: chi-square (2 dof) probability of the gate (default 0.999, gate at 13.8)."""
+    """Parameters of the 'nis' monitor (the filter's normalised innovation squared)."""
 
     model_config = ConfigDict(extra="forbid")
-    gate_prob: float = Field(0.999, gt=0.5, lt=1.0)
+    gate_prob: float = Field(0.999, gt=0.5, lt=1.0, description="chi-square (2 dof) probability of the gate [0.999, gate at 13.8]")
 
 
 class NisMonitor(Monitor):

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from riverbench.angles import wrap_deg
 from scenarios.export.frames import Frame, StreamInfo
 from sim.gnss_fix import GnssFix
 from sim.lidar import FIRING_CYCLE_S, LASER_INTERVAL_S, HDL32EConfig
@@ -106,7 +107,7 @@ def rotation_phase(points: np.ndarray, rate_hz: float, previous: float) -> float
         return previous
     azimuth = np.degrees(np.arctan2(-points["y"].astype(np.float64), points["x"]))
     start = azimuth - 360.0 * rate_hz * points["time"]
-    offset = (start - start[0] + 180.0) % 360.0 - 180.0
+    offset = wrap_deg(start - start[0])
     if np.ptp(offset) > PHASE_TOLERANCE_DEG:
         raise ValueError(f"pcap: the points do not lie on one rotation at {rate_hz:g} Hz (azimuth spread {np.ptp(offset):.3f} deg)")
     return float((start[0] + np.median(offset)) % 360.0)

@@ -33,6 +33,7 @@ from gymnasium import spaces
 from pydantic import BaseModel, ConfigDict, Field
 
 import worlds
+from riverbench.angles import wrap_angle
 from scenarios.gym import observation
 from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed
@@ -177,7 +178,7 @@ class RiverNavEnv(gymnasium.Env):
         log = ep.run.watch.log
         info = {
             "t": t, "true_pose": true_pose, "true_station_m": float(station), "true_cross_track_m": float(cross),
-            "true_heading_error_rad": (yaw - float(heading) + math.pi) % (2 * math.pi) - math.pi,
+            "true_heading_error_rad": wrap_angle(yaw - float(heading)),
             "clearance_m": clearance.distance_m,
             "nearest_part": self.world.parts[clearance.part].name if clearance.part >= 0 else "",
             "outcome": log.outcome, "collision_part": log.contact.part if log.contact else "",

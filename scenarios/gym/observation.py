@@ -7,6 +7,7 @@ import math
 import numpy as np
 from gymnasium import spaces
 
+from riverbench.angles import wrap_angle
 from sim.lidar import HDL32E_ELEVATION_DEG
 from worlds.route import Route
 
@@ -33,7 +34,7 @@ def route_frame(route: Route, start_station_m: float, xy: np.ndarray, yaw: float
     station, cross, heading = route.project(np.asarray(xy, dtype=float)[:2])
     c, s = math.cos(float(heading)), math.sin(float(heading))
     rot = np.array([[c, s], [-s, c]])
-    error = (yaw - float(heading) + math.pi) % (2.0 * math.pi) - math.pi
+    error = wrap_angle(yaw - float(heading))
     return np.array([float(station) - start_station_m, float(cross), error]), rot
 
 

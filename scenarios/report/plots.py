@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
+from riverbench.angles import wrap_angle
 from riverbench.atomic import atomic_path
 from scenarios.pipeline import files
 
@@ -130,7 +131,7 @@ def horizontal_error(track: Track, truth: Track) -> np.ndarray:
 def yaw_error_deg(track: Track, truth: Track) -> np.ndarray:
     """Signed yaw error (deg), estimate minus truth, wrapped to [-180, 180)."""
     d = track.yaw - truth.yaw[truth_index(truth, track.t)]
-    return np.degrees((d + np.pi) % (2 * np.pi) - np.pi)
+    return np.degrees(wrap_angle(d))
 
 
 def truth_index(truth: Track, t: np.ndarray) -> np.ndarray:

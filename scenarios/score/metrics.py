@@ -17,6 +17,7 @@ from fnmatch import fnmatchcase
 
 import numpy as np
 
+from riverbench.angles import wrap_angle
 from scenarios.score import windows as win
 from scenarios.score.record import FixTable, RunRecord
 
@@ -101,7 +102,7 @@ def horizontal_error(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def yaw_error_deg(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
     d = yaw_of(estimate) - yaw_of(truth)
-    return np.degrees(np.abs((d + np.pi) % (2 * np.pi) - np.pi))
+    return np.degrees(np.abs(wrap_angle(d)))
 
 
 def travelled(truth: np.ndarray) -> np.ndarray:

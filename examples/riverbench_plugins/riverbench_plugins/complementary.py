@@ -15,11 +15,12 @@ import numpy as np
 from pydantic import Field
 
 from fusion import BaseEstimatorParams, Verdict
-from fusion.geometry import lidar_to_base, planar, pose_matrix, rot2, wrap
+from fusion.geometry import lidar_to_base, planar, pose_matrix, rot2
 from fusion.monitors import FixContext, Monitor
 from fusion.observation import FixObservation, screen
 from fusion.odometry import OdometryTrack
 from matcher import MatchResult
+from riverbench.angles import wrap_angle
 from sim.gnss_fix import GnssFix
 
 
@@ -81,7 +82,7 @@ class ComplementaryFilter:
         self._track.add(stamp, step, step_cov)
         if self._xy is not None and self._yaw is not None:
             self._xy = self._xy + rot2(self._yaw) @ step[:2]
-            self._yaw = float(wrap(self._yaw + step[2]))
+            self._yaw = float(wrap_angle(self._yaw + step[2]))
             self._var += float(np.trace(step_cov[:2, :2])) / 2.0
             self._yaw_var += float(step_cov[2, 2])
 
@@ -140,12 +141,12 @@ class ComplementaryFilter:
         else:
             return
         if self._yaw is None:
-            self._yaw, self._yaw_var = float(wrap(implied)), course_var
+            self._yaw, self._yaw_var = float(wrap_angle(implied)), course_var
             self._xy = obs.xy - rot2(self._yaw) @ self._lever
             return
-        error = float(wrap(implied - self._yaw))
+        error = float(wrap_angle(implied - self._yaw))
         if abs(error) > math.radians(self.params.max_course_error_deg):
             return
         k = self.params.heading_gain
-        self._yaw = float(wrap(self._yaw + k * error))
+        self._yaw = float(wrap_angle(self._yaw + k * error))
         self._yaw_var = (1.0 - k) ** 2 * self._yaw_var + k**2 * course_var

@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/results.py [--baseline benchmarks/baseline/library.json] [--check]
 
 The baseline comes from `riverbench suite --fast --seeds 5 --save-baseline benchmarks/baseline/library.json`
-(see the README's Regression baselines); each table is stamped with the commit and date it was measured at.
+(see docs/guide.md, Regression baselines); each table is stamped with the commit and date it was measured at.
 --check writes nothing and exits 1 when a generated file is out of date (what tests/test_results_fresh.py checks).
 """
 

@@ -7,9 +7,9 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from matcher import plugin
 from matcher.base import Matcher, MatcherParams
 from matcher.result import MatchResult
+from riverbench import plugins
 
 _MATCHERS = {
     "pcl6d": ("matcher.pcl6d", "Pcl6d", "Pcl6dParams"),
@@ -25,7 +25,7 @@ __all__ = ["GROUP", "MatchResult", "Matcher", "MatcherParams", "available", "cre
 
 def available() -> list[str]:
     """Names accepted by `create`: the built-in matchers, then those installed plugins register."""
-    return list(_MATCHERS) + [name for name in plugin.names(GROUP) if name not in _MATCHERS]
+    return list(_MATCHERS) + [name for name in plugins.names(GROUP) if name not in _MATCHERS]
 
 
 def params_model(name: str) -> type[BaseModel]:
@@ -52,6 +52,6 @@ def create(name: str, **params) -> Matcher:
 
 def _plugin(name: str) -> type[Any]:
     """The plugin matcher class `name` names (checked), or a ValueError listing the known names."""
-    if not plugin.is_path(name) and name not in plugin.names(GROUP):
+    if not plugins.is_path(name) and name not in plugins.names(GROUP):
         raise ValueError(f"unknown matcher {name!r} (one of {', '.join(available())}, or a plugin 'package.module:Class')")
-    return plugin.load(name, GROUP, "matcher", methods=("register",))
+    return plugins.load(name, GROUP, "matcher", methods=("register",))

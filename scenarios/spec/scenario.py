@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 import fusion
 import matcher
 import worlds
-from matcher.plugin import is_path as is_plugin_path
+from riverbench.plugins import is_path as is_plugin_path
 from scenarios.score.expectations import Expectation
 from sim.autopilot import AutopilotConfig
 from sim.dynamics import WamvDynamics

@@ -10,6 +10,7 @@ from pydantic import BaseModel, ValidationError
 from matcher.base import Matcher, MatcherParams
 from matcher.result import MatchResult
 from riverbench import plugins
+from riverbench.errors import validation_message
 
 _MATCHERS = {
     "pcl6d": ("matcher.pcl6d", "Pcl6d", "Pcl6dParams"),
@@ -42,8 +43,7 @@ def create(name: str, **params) -> Matcher:
     try:
         validated = model(**params)
     except ValidationError as exc:
-        problems = "; ".join(f"{'.'.join(map(str, e['loc'])) or '?'}: {e['msg']}" for e in exc.errors())
-        raise ValueError(f"matcher {name!r}: bad parameter {problems}") from None
+        raise ValueError(validation_message(exc, f"matcher {name!r}")) from None
     if name in _MATCHERS:
         module, cls, _ = _MATCHERS[name]
         return getattr(import_module(module), cls)(validated)

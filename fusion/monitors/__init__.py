@@ -15,6 +15,7 @@ from fusion.monitors.hdop import HdopMonitor, HdopParams
 from fusion.monitors.nis import NisMonitor, NisParams
 from fusion.monitors.none import NoMonitor, NoneParams
 from riverbench import plugins
+from riverbench.errors import validation_message
 
 _MONITORS: dict[str, tuple[Callable[..., Monitor], type[BaseModel]]] = {  # (class, its parameter model)
     "hdop": (HdopMonitor, HdopParams),
@@ -40,10 +41,8 @@ def validate_params(model: type[M], params: dict, what: str) -> M:
     """Validate params with a pydantic model; a bad key or value is a one-line ValueError naming it."""
     try:
         return model(**params)
-    except ValidationError as err:
-        first = err.errors()[0]
-        key = ".".join(str(p) for p in first["loc"]) or "?"
-        raise ValueError(f"{what}: parameter '{key}': {first['msg']}") from None
+    except ValidationError as exc:
+        raise ValueError(validation_message(exc, what)) from None
 
 
 def params_model(name: str) -> type[BaseModel]:

@@ -20,7 +20,7 @@ from fusion.monitors import validate_params
 from fusion.params import BaseEstimatorParams
 from fusion.pf import Pf, PfParams
 from fusion.verdict import Event, Verdict
-from matcher import plugin
+from riverbench import plugins
 
 _ESTIMATORS: dict[str, tuple[Callable[..., Estimator], type[BaseEstimatorParams]]] = {  # (class, its parameter model)
     "gps_only": (GpsOnly, GpsOnlyParams),
@@ -39,7 +39,7 @@ def built_in() -> list[str]:
 
 def available() -> list[str]:
     """Names create() knows: the built-in estimators, then those installed plugins register."""
-    return built_in() + [name for name in plugin.names(GROUP) if name not in _ESTIMATORS]
+    return built_in() + [name for name in plugins.names(GROUP) if name not in _ESTIMATORS]
 
 
 def params_model(name: str) -> type[BaseEstimatorParams]:
@@ -57,10 +57,10 @@ def create(name: str, **params) -> Estimator:
 
 def _plugin(name: str) -> type[Any]:
     """The plugin estimator class `name` names (checked), or a ValueError listing the known names."""
-    if not plugin.is_path(name) and name not in plugin.names(GROUP):
+    if not plugins.is_path(name) and name not in plugins.names(GROUP):
         raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())}, or a plugin 'package.module:Class')")
-    return plugin.load(name, GROUP, "estimator", methods=("add_fix", "add_match"), properties=("pose", "cov"),
-                       params=BaseEstimatorParams)
+    return plugins.load(name, GROUP, "estimator", methods=("add_fix", "add_match"), properties=("pose", "cov"),
+                        params=BaseEstimatorParams)
 
 
 __all__ = ["GROUP", "BaseEstimatorParams", "Estimator", "Event", "Verdict", "available", "built_in", "create", "monitors", "params_model"]

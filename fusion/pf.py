@@ -27,7 +27,7 @@ from fusion.monitors import Monitor
 from fusion.observation import FixObservation
 from fusion.params import MotionModelParams
 from riverbench.angles import wrap_angle
-from sim.rng import stream
+from riverbench.rng import stream
 
 
 class PfParams(MotionModelParams):

@@ -7,9 +7,10 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from matcher import plugin
 from matcher.base import Matcher, MatcherParams
 from matcher.result import MatchResult
+from riverbench import plugins
+from riverbench.errors import validation_message
 
 _MATCHERS = {
     "pcl6d": ("matcher.pcl6d", "Pcl6d", "Pcl6dParams"),
@@ -25,7 +26,7 @@ __all__ = ["GROUP", "MatchResult", "Matcher", "MatcherParams", "available", "cre
 
 def available() -> list[str]:
     """Names accepted by `create`: the built-in matchers, then those installed plugins register."""
-    return list(_MATCHERS) + [name for name in plugin.names(GROUP) if name not in _MATCHERS]
+    return list(_MATCHERS) + [name for name in plugins.names(GROUP) if name not in _MATCHERS]
 
 
 def params_model(name: str) -> type[BaseModel]:
@@ -42,8 +43,7 @@ def create(name: str, **params) -> Matcher:
     try:
         validated = model(**params)
     except ValidationError as exc:
-        problems = "; ".join(f"{'.'.join(map(str, e['loc'])) or '?'}: {e['msg']}" for e in exc.errors())
-        raise ValueError(f"matcher {name!r}: bad parameter {problems}") from None
+        raise ValueError(validation_message(exc, f"matcher {name!r}")) from None
     if name in _MATCHERS:
         module, cls, _ = _MATCHERS[name]
         return getattr(import_module(module), cls)(validated)
@@ -52,6 +52,6 @@ def create(name: str, **params) -> Matcher:
 
 def _plugin(name: str) -> type[Any]:
     """The plugin matcher class `name` names (checked), or a ValueError listing the known names."""
-    if not plugin.is_path(name) and name not in plugin.names(GROUP):
+    if not plugins.is_path(name) and name not in plugins.names(GROUP):
         raise ValueError(f"unknown matcher {name!r} (one of {', '.join(available())}, or a plugin 'package.module:Class')")
-    return plugin.load(name, GROUP, "matcher", methods=("register",))
+    return plugins.load(name, GROUP, "matcher", methods=("register",))

@@ -1,7 +1,8 @@
 """riverbench: the ground floor every package may import and that imports nothing of ours.
 
 `__version__` is the installed distribution's version ('0+unknown' when it is not installed);
-`riverbench.angles` wraps angles, one formula for every package; errors, atomic writes and provenance live here too.
+`riverbench.angles` wraps angles, one formula for every package; `riverbench.rng` gives seeded random streams;
+errors, atomic writes and provenance live here too.
 """
 
 from __future__ import annotations

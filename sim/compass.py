@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from riverbench.angles import wrap_angle
-from sim.rng import stream
+from riverbench.rng import stream
 
 
 class Compass:

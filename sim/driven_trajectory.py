@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from riverbench.rng import stream
 from sim.dynamics import Manoeuvring, WamvDynamics
-from sim.rng import stream
 from sim.trajectory import TrajectoryConfig, VesselPoses, mount_matrix, wave_poses
 from sim.waves import WaveMotion
 

@@ -5,7 +5,7 @@ from the antenna in the world's ENU frame, the elevation mask, line of sight and
 reflections by ray casting (sim.visibility, sim.multipath), pseudoranges with the receiver clock,
 elevation-dependent errors and NLOS/multipath biases (sim.pseudorange), a weighted least-squares
 position (sim.wls), and the receiver's own navigation filter (sim.receiver_filter). Every fix
-carries the exact truth. All randomness comes from sim.rng.stream(seed, "gnss....").
+carries the exact truth. All randomness comes from riverbench.rng.stream(seed, "gnss....").
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from riverbench.rng import stream
 from sim import wls
 from sim.constellation import Constellation
 from sim.geodesy import LocalFrame
@@ -25,7 +26,6 @@ from sim.gnss_fix import FixTruth, GnssFix, SatelliteReport, SatelliteTruth
 from sim.multipath import L1_WAVELENGTH_M, FacadeIndex, code_multipath_error
 from sim.pseudorange import PseudorangeNoise, RangeErrors
 from sim.receiver_filter import CvKalman, FilterConfig
-from sim.rng import stream
 from sim.scene import split
 from sim.traffic import Traffic
 from sim.visibility import trace

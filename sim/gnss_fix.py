@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sim.nmea import fix_sentences
+
 
 @dataclass(frozen=True)
 class SatelliteReport:
@@ -72,6 +74,4 @@ class GnssFix:
 
     def nmea(self) -> list[str]:
         """This epoch as NMEA 0183 sentences: GGA, RMC, GSA, GSV (see sim.nmea)."""
-        from sim.nmea import fix_sentences
-
         return fix_sentences(self)

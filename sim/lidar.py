@@ -7,8 +7,8 @@ import numpy as np
 import open3d as o3d
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from riverbench.rng import stream
 from sim.lidar_traffic import MoverRays
-from sim.rng import stream
 from sim.scan import POINT_DTYPE, Scan
 from sim.scene import Scene, split
 from sim.traffic import Traffic

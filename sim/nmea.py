@@ -4,22 +4,67 @@ Talker "GP" (GPS only). Latitude/longitude carry 5 decimals of minutes (~2 cm), 
 seconds, as common consumer receivers write them. GGA's altitude field holds the fix's altitude
 with a geoid separation of 0 (the worlds' heights are taken as orthometric). The parser checks the
 checksum and decodes the fields back into numbers; `parse_epoch` merges one epoch's sentences.
+
+The writers take any object with the fields they read (`Fix`, `Satellite`: sim.gnss_fix's GnssFix and
+SatelliteReport have them), so this module imports nothing of the receiver's and GnssFix.nmea() can use it.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from datetime import date, datetime, timedelta, timezone
 from functools import reduce
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from sim.gnss_fix import GnssFix
+from typing import Protocol
 
 TALKER = "GP"
 KNOT_MPS = 1852.0 / 3600.0
 MAX_GSA_PRNS = 12
 SATS_PER_GSV = 4
+
+
+class Satellite(Protocol):
+    """What GSA and GSV read of a satellite in view (sim.gnss_fix.SatelliteReport)."""
+
+    @property
+    def prn(self) -> int: ...
+    @property
+    def az_deg(self) -> float: ...
+    @property
+    def el_deg(self) -> float: ...
+    @property
+    def snr(self) -> float: ...
+    @property
+    def used(self) -> bool: ...
+
+
+class Fix(Protocol):
+    """What the sentences read of one receiver epoch (sim.gnss_fix.GnssFix)."""
+
+    @property
+    def utc(self) -> str: ...
+    @property
+    def lat(self) -> float: ...
+    @property
+    def lon(self) -> float: ...
+    @property
+    def alt(self) -> float: ...
+    @property
+    def quality(self) -> int: ...
+    @property
+    def num_sats(self) -> int: ...
+    @property
+    def hdop(self) -> float: ...
+    @property
+    def vdop(self) -> float: ...
+    @property
+    def pdop(self) -> float: ...
+    @property
+    def speed_mps(self) -> float: ...
+    @property
+    def course_deg(self) -> float: ...
+    @property
+    def sats(self) -> Sequence[Satellite]: ...
 
 
 def checksum(body: str) -> str:
@@ -45,7 +90,7 @@ def _angle(value: float, degree_digits: int, hemispheres: str) -> tuple[str, str
     return f"{degrees:0{degree_digits}d}{minutes / 1e5:08.5f}", hemispheres[0] if value >= 0 else hemispheres[1]
 
 
-def _utc(fix: GnssFix) -> datetime:
+def _utc(fix: Fix) -> datetime:
     """The fix's UTC rounded to the 0.01 s that NMEA carries."""
     when = datetime.fromisoformat(fix.utc) + timedelta(microseconds=5000)
     return when.replace(microsecond=when.microsecond // 10_000 * 10_000)
@@ -55,7 +100,7 @@ def _time(when: datetime) -> str:
     return f"{when:%H%M%S}.{when.microsecond // 10_000:02d}"
 
 
-def gga(fix: GnssFix) -> str:
+def gga(fix: Fix) -> str:
     """Fix data: time, position, quality, satellites used, HDOP, altitude."""
     valid = fix.quality != 0
     lat, ns = _angle(fix.lat if valid else math.nan, 2, "NS")
@@ -68,7 +113,7 @@ def gga(fix: GnssFix) -> str:
     return sentence(body)
 
 
-def rmc(fix: GnssFix) -> str:
+def rmc(fix: Fix) -> str:
     """Recommended minimum: time, status, position, speed over ground (knots), course, date, mode."""
     when = _utc(fix)
     valid = fix.quality != 0
@@ -84,7 +129,7 @@ def rmc(fix: GnssFix) -> str:
     return sentence(body)
 
 
-def gsa(fix: GnssFix) -> str:
+def gsa(fix: Fix) -> str:
     """DOP and the satellites used (at most 12 listed); fix type 3 when a 3-D solution was computed."""
     used = [s.prn for s in fix.sats if s.used][:MAX_GSA_PRNS]
     fix_type = 3 if math.isfinite(fix.pdop) and used else 1
@@ -93,7 +138,7 @@ def gsa(fix: GnssFix) -> str:
     return sentence(body)
 
 
-def gsv(fix: GnssFix) -> list[str]:
+def gsv(fix: Fix) -> list[str]:
     """Satellites in view, four per sentence: PRN, elevation, azimuth (deg), SNR (dB-Hz, empty if not tracked)."""
     sats = sorted(fix.sats, key=lambda s: s.prn)
     total = max(1, math.ceil(len(sats) / SATS_PER_GSV))
@@ -108,7 +153,7 @@ def gsv(fix: GnssFix) -> list[str]:
     return out
 
 
-def fix_sentences(fix: GnssFix) -> list[str]:
+def fix_sentences(fix: Fix) -> list[str]:
     """All sentences of one epoch in the order receivers write them: GGA, RMC, GSA, GSV..."""
     return [gga(fix), rmc(fix), gsa(fix), *gsv(fix)]
 

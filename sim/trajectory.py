@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
-from sim.rng import stream
+from riverbench.rng import stream
 from sim.vessel import HullConfig, hull_mesh
 from sim.waves import WaveMotion
 from worlds.world import World

@@ -11,8 +11,8 @@ import numpy as np
 
 from fusion.geometry import adjoint, between, invert, rot2
 from matcher.result import MatchResult
+from riverbench.rng import stream
 from sim.gnss_fix import FixTruth, GnssFix
-from sim.rng import stream
 
 DEFAULT_MOUNT = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.8], [0, 0, 0, 1.0]])
 

@@ -87,13 +87,13 @@ def test_registry_names_the_problem():
     assert fusion.available() == ["gps_only", "hdop_switch", "ekf", "pf"]
     with pytest.raises(ValueError, match="unknown estimator 'ukf'"):
         fusion.create("ukf")
-    with pytest.raises(ValueError, match="parameter 'n_particle'"):
+    with pytest.raises(ValueError, match="estimator 'pf': unknown key 'n_particle'"):
         fusion.create("pf", n_particle=10)
-    with pytest.raises(ValueError, match="parameter 'mount'"):
+    with pytest.raises(ValueError, match="estimator 'ekf': mount: must be a rigid transform"):
         fusion.create("ekf", mount=[[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
     with pytest.raises(ValueError, match="unknown monitor 'raim'"):
         fusion.create("ekf", monitor="raim")
-    with pytest.raises(ValueError, match="monitor 'nis': parameter 'gate'"):
+    with pytest.raises(ValueError, match="monitor 'nis': unknown key 'gate'"):
         fusion.create("pf", monitor="nis", monitor_params={"gate": 3})
     est = fusion.create("ekf", matcher="kiss_icp", monitor="nis")
     assert est.params.matcher == "kiss_icp" and est.monitor.name == "nis"

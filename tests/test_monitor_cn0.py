@@ -205,7 +205,7 @@ def test_an_estimator_runs_it_on_bad_fixes_without_crashing():
 
 
 def test_parameters_are_validated_by_name():
-    with pytest.raises(ValueError, match="'gate_sigma'"):
+    with pytest.raises(ValueError, match="monitor 'cn0': gate_sigma: Input should be greater than 0"):
         monitors.create("cn0", gate_sigma=0)
     with pytest.raises(ValueError, match="high_q"):
         monitors.create("cn0", mid_q=0.9, high_q=0.8)

@@ -124,7 +124,7 @@ def test_registry_validates_names_and_parameters():
     assert set(monitors.available()) == {"hdop", "nis", "consistency", "cn0", "combined", "combined_cn0", "none"}
     with pytest.raises(ValueError, match="unknown monitor 'raim'"):
         monitors.create("raim")
-    with pytest.raises(ValueError, match="'max_hdop'"):
+    with pytest.raises(ValueError, match="monitor 'hdop': max_hdop: Input should be greater than 0"):
         monitors.create("hdop", max_hdop=-1)
     with pytest.raises(ValueError, match="'window'"):
         monitors.create("consistency", window=3)

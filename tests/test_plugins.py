@@ -116,7 +116,7 @@ def _estimator(**spec) -> dict:
         (_matcher(plugin="plugin_faults:Missing"), "matcher plugin 'plugin_faults:Missing': module 'plugin_faults' has no 'Missing'"),
         (_matcher(plugin="plugin_faults:not_a_class"), "matcher plugin 'plugin_faults:not_a_class': is not a class"),
         (_matcher(plugin="plugin_faults:NoRegister"), "plugin 'plugin_faults:NoRegister': class NoRegister lacks method 'register'"),
-        (_matcher(plugin="plugin_faults:FailingMatcher", params={"how": "explode"}), "parameter 'how'"),
+        (_matcher(plugin="plugin_faults:FailingMatcher", params={"how": "explode"}), "(plugin_faults:FailingMatcher): how: Input should be"),
         (_estimator(plugin="plugin_faults:HalfEstimator"), "class HalfEstimator lacks method 'add_match', property 'cov'"),
         (_estimator(plugin="plugin_faults:PlainParamsEstimator"), "a class attribute Params subclassing BaseEstimatorParams"),
         (_estimator(kind="ekf", monitor="plugin_faults:NoParams"), "monitor plugin 'plugin_faults:NoParams': class NoParams lacks a"),

@@ -26,7 +26,7 @@ def test_every_library_scenario_loads_with_a_description():
 @pytest.mark.parametrize(
     "data, needle",
     [
-        ({"lidar": {"bogus": 1}}, "lidar.bogus: unknown key"),
+        ({"lidar": {"bogus": 1}}, "t.toml: unknown key 'lidar.bogus'"),
         ({"lidar": {"range_noise_m": "abc"}}, "lidar.range_noise_m"),
         ({"lidar": {"seed": 3}}, "lidar.seed"),
         ({"gnss": {"rate_hz": 100}}, "gnss.rate_hz"),

@@ -96,7 +96,7 @@ def test_samples_are_joint_and_crossed_with_the_grid():
     (lambda: Range.parse("lidar.range_noise_m=a:b"), "finite numbers"),
     (lambda: SweepPlan(("canal_multipath",)), "nothing to sweep"),
     (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("a=1,2"), Axis.parse("a=3"))), "swept twice"),
-    (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.no_such_key=1,2"),)).points(), "lidar.no_such_key: unknown key"),
+    (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.no_such_key=1,2"),)).points(), "canal_multipath.toml: unknown key 'lidar.no_such_key'"),
     (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.range_noise_m=fast,slow"),)).points(), "lidar.range_noise_m"),
     (lambda: SweepPlan(("no_such_scenario",), seeds=2).points(), "unknown scenario 'no_such_scenario'"),
 ])
@@ -257,7 +257,7 @@ def test_ctrl_c_stops_the_sweep_with_the_finished_runs_in_the_table(tmp_path):
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["--grid", "lidar.no_such_key=1,2"], "lidar.no_such_key: unknown key"),
+    (["--grid", "lidar.no_such_key=1,2"], "canal_multipath.toml: unknown key 'lidar.no_such_key'"),
     (["--grid", "lidar.range_noise_m=fast,slow"], "lidar.range_noise_m"),
     (["--grid", "lidar.range_noise_m="], "no values"),
     (["--seeds", "2", "--objective", "estimators.ekf.ape.p96"], "no such metric"),

@@ -90,7 +90,7 @@ def build_boats(boats: Boats) -> list[Part]:
     booms = _instances(_ROD, sail, np.stack([0.45 * ls, np.full(len(sail), 0.05), np.full(len(sail), 0.05)], 1),
                        np.stack([-0.125 * ls, z, fs + 1.0], 1), lie_along_x=True)
     parts = [Part("moored_boat_hulls", "moored_boat", FIBREGLASS, merge([m for m in (hulls, cabins) if m is not None]))]
-    if len(sail):
+    if masts is not None and booms is not None:  # None exactly when no boat has a sail
         parts.append(Part("moored_boat_masts", "moored_boat", ALUMINIUM, merge([masts, booms])))
     return parts
 

@@ -20,6 +20,7 @@ from typing import Literal
 
 import numpy as np
 import trimesh
+from numpy.typing import ArrayLike
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from worlds.geometry import UP, box, merge, orient, pipe, strip
@@ -95,7 +96,7 @@ class BridgeSpec(BaseModel):
         return u[(u - half > edge_r) & (u + half < edge_l)]
 
 
-def _world(origin: np.ndarray, u: np.ndarray, v: np.ndarray, local: np.ndarray) -> np.ndarray:
+def _world(origin: np.ndarray, u: np.ndarray, v: np.ndarray, local: ArrayLike) -> np.ndarray:
     """Local (u, v, z) points (..., 3) to ENU."""
     local = np.asarray(local, float)
     xy = origin + local[..., :1] * u + local[..., 1:2] * v
@@ -182,20 +183,6 @@ def build_beam(spec: BridgeSpec, route: Route) -> list[Part]:
     if abut:
         parts.append(Part(f"{spec.name}_abutments", "pier", concrete, merge(abut)))
     return parts
-
-
-def _arch_span(origin, u, v, a: float, b: float, spring: float, crown: float, top: float, half_w: float, n: int = 16) -> list[trimesh.Trimesh]:
-    """Elliptical vault between pier faces a < b (intrados from `spring` to `crown`, facing down) and
-    its spandrel walls up to `top` (facing out of the bridge)."""
-    uc, half = 0.5 * (a + b), 0.5 * (b - a)
-    uu = uc + half * np.cos(np.linspace(np.pi, 0.0, n + 1))
-    zz = spring + (crown - spring) * np.sqrt(np.clip(1.0 - ((uu - uc) / half) ** 2, 0.0, 1.0))
-    uu[n // 2], zz[n // 2] = uc, crown
-    curve = lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(n + 1, vv), z])  # noqa: E731
-    vault = orient(strip(np.stack([curve(-half_w, zz), curve(half_w, zz)])), -UP)
-    sides = [orient(strip(np.stack([curve(s * half_w, zz), curve(s * half_w, np.full(n + 1, top))])), np.r_[s * v, 0.0])
-             for s in (-1, 1)]
-    return [vault, *sides]
 
 
 def _arch_curve(a: float, b: float, spring: float, crown: float, n: int = 16) -> tuple[np.ndarray, np.ndarray]:

@@ -2,7 +2,7 @@
 
 A row walks along the route on one side between two stations, placing buildings of random
 frontage, depth, height and facade material with random gaps. Every draw comes from
-`sim.rng.stream(seed, "worlds.buildings")`, so the same rows and seed give the same mesh.
+`riverbench.rng.stream(seed, "worlds.buildings")`, so the same rows and seed give the same mesh.
 Buildings that would reach closer than half the setback to the channel edge (inner side of a bend) or
 that overlap a kept-clear station range (bridges, the lock) are skipped.
 """
@@ -14,7 +14,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from sim.rng import stream
+from riverbench.rng import stream
 from worlds.channel import Centerline
 from worlds.geometry import box, merge
 from worlds.materials import MATERIALS

@@ -63,7 +63,7 @@ def save(world: World, path: Path) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
+            np.savez(f, allow_pickle=False, **arrays)  # plain numeric and string arrays: never a pickle
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
     except BaseException:

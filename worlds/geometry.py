@@ -54,17 +54,17 @@ def untangle(pts: np.ndarray) -> np.ndarray:
     n = len(a)
     hits: list[tuple[int, int, np.ndarray]] = []
     for start in range(0, n, 512):
-        i = np.arange(start, min(start + 512, n))
-        ai, di = a[i][:, None, :], d[i][:, None, :]
+        rows = np.arange(start, min(start + 512, n))
+        ai, di = a[rows][:, None, :], d[rows][:, None, :]
         rel = a[None, :, :] - ai
         den = di[..., 0] * d[None, :, 1] - di[..., 1] * d[None, :, 0]
         with np.errstate(divide="ignore", invalid="ignore"):
             t = (rel[..., 0] * d[None, :, 1] - rel[..., 1] * d[None, :, 0]) / den
             u = (rel[..., 0] * di[..., 1] - rel[..., 1] * di[..., 0]) / den
         cross = (np.abs(den) > 1e-12) & (t >= 0) & (t < 1) & (u >= 0) & (u < 1)
-        cross &= np.arange(n)[None, :] > i[:, None] + 1
+        cross &= np.arange(n)[None, :] > rows[:, None] + 1
         for ii, jj in zip(*np.nonzero(cross)):
-            k = i[ii]
+            k = rows[ii]
             hits.append((int(k), int(jj), pts[k] + t[ii, jj] * d[k]))
     out = pts.copy()
     done = -1

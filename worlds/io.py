@@ -118,6 +118,7 @@ def export(world: World, path: str | os.PathLike) -> Path:
     fmt = path.suffix.lower().lstrip(".")
     if not fmt:
         raise ValueError(f"export: {str(path)!r} has no extension to choose the format from")
+    obj: trimesh.Scene | trimesh.Trimesh
     if fmt in SCENE_FORMATS:
         scene = trimesh.Scene()
         for p in world.parts:

@@ -6,7 +6,7 @@ freeboard, steel guide piles), reaching out from the channel edge ('across') or 
 (or, with one row and no jitter, a line of boats along a quay). A dock that would come too close
 to the route or run into a structure (a narrow canal, a moved bridge) is left out, and so is a boat
 that would not float clear of the route, the edge, the structures and the docks. Every draw comes from
-`sim.rng.stream(seed, "worlds.moorings")`.
+`riverbench.rng.stream(seed, "worlds.moorings")`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 import trimesh
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from sim.rng import stream
+from riverbench.rng import stream
 from worlds.boats import Boats, build_boats, draw
 from worlds.channel import Centerline
 from worlds.geometry import box, merge, pipe

@@ -6,6 +6,8 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
+from riverbench.errors import validation_message
+
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
 
@@ -16,8 +18,4 @@ def validate(model: type[ModelT], data: Any, where: str) -> ModelT:
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        key = ".".join(str(p) for p in err["loc"]) or "(root)"
-        if err["type"] == "extra_forbidden":
-            raise ValueError(f"{where}: unknown parameter {key!r}") from None
-        raise ValueError(f"{where}: {key}: {err['msg']} (got {err.get('input')!r})") from None
+        raise ValueError(validation_message(exc, where)) from None

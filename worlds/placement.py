@@ -7,6 +7,8 @@ distance from the solid structures already built (bridges, locks, buildings).
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
@@ -85,7 +87,7 @@ def _scene(meshes: list[trimesh.Trimesh]):
 
     if not meshes:
         return None
-    mesh = trimesh.util.concatenate(meshes)
+    mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(meshes))  # meshes in, a mesh out
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)), o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)))
     return scene

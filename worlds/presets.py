@@ -30,7 +30,7 @@ class PresetParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    seed: int = Field(0, ge=0, description="seed of the random building layout (sim.rng stream 'worlds.buildings')")
+    seed: int = Field(0, ge=0, description="seed of the random building layout (riverbench.rng stream 'worlds.buildings')")
     origin: tuple[float, float, float] = Field(BOSTON_BU_BRIDGE, description="geodetic origin (lat deg, lon deg, alt m) of the ENU frame")
     bridges: list[BridgeSpec] | None = Field(None, description="replace the preset's bridges with these (None = the preset's own)")
     buildings: bool = Field(True, description="place the preset's city blocks")

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import make_interp_spline
 
 
@@ -81,7 +82,7 @@ class Route:
         _, h = self.at(s)
         return np.stack([-np.sin(h), np.cos(h)], axis=-1)
 
-    def station_of(self, xy: np.ndarray) -> float:
+    def station_of(self, xy: ArrayLike) -> float:
         """Arc length of the route vertex nearest to an ENU point."""
         return float(self.s[np.argmin(np.linalg.norm(self.xy - np.asarray(xy)[:2], axis=1))])
 
@@ -94,7 +95,8 @@ class Route:
         p = np.asarray(xy, dtype=float)[..., :2]
         flat = p.reshape(-1, 2)
         parts = [self._project(flat[i:i + 256]) for i in range(0, len(flat), 256)] or [(np.zeros(0),) * 3]
-        return tuple(np.concatenate(col).reshape(p.shape[:-1]) for col in zip(*parts))
+        station, cross, heading = (np.concatenate(col).reshape(p.shape[:-1]) for col in zip(*parts))
+        return station, cross, heading
 
     def _project(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         a, d = self.xy[:-1], np.diff(self.xy, axis=0)

@@ -7,7 +7,7 @@ so it passes through with probability exp(-density * L / 2) (0.17 through the mi
 crown at 0.35 m^2/m^3) and its returns have noisy normals, as laser returns from foliage do. Every
 facet lies inside its crown's envelope (`Crowns`), which GNSS uses for foliage attenuation. Trunks
 are solids (they block GNSS like a pier would); only crowns are porous.
-Every draw comes from `sim.rng.stream(seed, "worlds.vegetation")`.
+Every draw comes from `riverbench.rng.stream(seed, "worlds.vegetation")`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 import trimesh
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from sim.rng import stream
+from riverbench.rng import stream
 from worlds.channel import Centerline, ChannelParams, ground_height
 from worlds.crowns import Crowns
 from worlds.materials import TIMBER, VEGETATION

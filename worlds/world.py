@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import trimesh
@@ -69,7 +69,7 @@ class World:
     @cached_property
     def mesh(self) -> trimesh.Trimesh:
         """Every part in one mesh; faces keep the order of `parts` (see `face_part`)."""
-        return trimesh.util.concatenate([p.mesh for p in self.parts])
+        return cast(trimesh.Trimesh, trimesh.util.concatenate([p.mesh for p in self.parts]))  # meshes in, a mesh out
 
     @cached_property
     def face_part(self) -> np.ndarray:
@@ -96,7 +96,7 @@ class World:
     def gnss_scene(self) -> "o3d.t.geometry.RaycastingScene":
         """Scene of what blocks GNSS signals: every part but foliage (the same scene when there is none)."""
         solid = [p.mesh for p in self.parts if not p.material.foliage]
-        return self.raycasting_scene if len(solid) == len(self.parts) else _scene(trimesh.util.concatenate(solid))
+        return self.raycasting_scene if len(solid) == len(self.parts) else _scene(cast(trimesh.Trimesh, trimesh.util.concatenate(solid)))
 
     def part(self, name: str) -> Part:
         """The part called `name`."""

@@ -14,7 +14,8 @@ from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
 from fusion.monitors.hdop import HdopMonitor, HdopParams
 from fusion.monitors.nis import NisMonitor, NisParams
 from fusion.monitors.none import NoMonitor, NoneParams
-from matcher import plugin
+from riverbench import plugins
+from riverbench.errors import validation_message
 
 _MONITORS: dict[str, tuple[Callable[..., Monitor], type[BaseModel]]] = {  # (class, its parameter model)
     "hdop": (HdopMonitor, HdopParams),
@@ -33,17 +34,15 @@ M = TypeVar("M", bound=BaseModel)
 
 def available() -> list[str]:
     """Names create() knows: the built-in monitors, then those installed plugins register."""
-    return sorted(_MONITORS) + [name for name in plugin.names(GROUP) if name not in _MONITORS]
+    return sorted(_MONITORS) + [name for name in plugins.names(GROUP) if name not in _MONITORS]
 
 
 def validate_params(model: type[M], params: dict, what: str) -> M:
     """Validate params with a pydantic model; a bad key or value is a one-line ValueError naming it."""
     try:
         return model(**params)
-    except ValidationError as err:
-        first = err.errors()[0]
-        key = ".".join(str(p) for p in first["loc"]) or "?"
-        raise ValueError(f"{what}: parameter '{key}': {first['msg']}") from None
+    except ValidationError as exc:
+        raise ValueError(validation_message(exc, what)) from None
 
 
 def params_model(name: str) -> type[BaseModel]:
@@ -69,9 +68,9 @@ def create(name: str, **params) -> Monitor:
 
 def _plugin(name: str) -> type[Any]:
     """The plugin monitor class `name` names (checked), or a ValueError listing the known names."""
-    if not plugin.is_path(name) and name not in plugin.names(GROUP):
+    if not plugins.is_path(name) and name not in plugins.names(GROUP):
         raise ValueError(f"unknown monitor '{name}' (available: {', '.join(available())}, or a plugin 'package.module:Class')")
-    return plugin.load(name, GROUP, "monitor", methods=("check", "commit", "reset", "note_outage"))
+    return plugins.load(name, GROUP, "monitor", methods=("check", "commit", "reset", "note_outage"))
 
 
 __all__ = ["GROUP", "FixContext", "Monitor", "available", "create", "params_model", "validate_params"]

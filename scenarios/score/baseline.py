@@ -24,6 +24,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from riverbench.atomic import atomic_path
+from riverbench.errors import validation_message
 
 FORMAT = "riverbench-baseline"
 FORMAT_VERSION = 1
@@ -98,9 +99,7 @@ def load(path: Path) -> Baseline:
     try:
         return Baseline.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        key = ".".join(str(p) for p in err["loc"])
-        raise ValueError(f"baseline {path}: {key + ': ' if key else ''}{err['msg'].removeprefix('Value error, ')}") from None
+        raise ValueError(validation_message(exc, f"baseline {path}")) from None
 
 
 def flatten(metrics: dict) -> dict[str, float | None]:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from riverbench.errors import validation_message
 from scenarios.spec import overrides
 from scenarios.spec.scenario import Scenario, default_lists
 
@@ -64,9 +65,4 @@ def validate(data: dict, source: str = "scenario") -> Scenario:
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        key = ".".join(str(p) for p in err["loc"])
-        message = err["msg"].removeprefix("Value error, ")
-        if err["type"] == "extra_forbidden":
-            message = "unknown key"
-        raise ValueError(f"{source}: {key + ': ' if key else ''}{message}") from None
+        raise ValueError(validation_message(exc, source)) from None

@@ -13,12 +13,13 @@ import json
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 import fusion
 import matcher
 import worlds
-from matcher.plugin import is_path as is_plugin_path
+from riverbench.errors import validation_message
+from riverbench.plugins import is_path as is_plugin_path
 from scenarios.score.expectations import Expectation
 from sim.autopilot import AutopilotConfig
 from sim.dynamics import WamvDynamics
@@ -353,16 +354,10 @@ def _unique(what: str, ids: list[str]) -> None:
 
 def _validated(model: type[BaseModel], params: dict, where: str) -> dict:
     """params validated by `model`, every default filled in (json-able); a bad key is a one-line ValueError."""
-    from pydantic import ValidationError
-
     try:
         return model.model_validate(params).model_dump(mode="json")
     except ValidationError as exc:
-        err = exc.errors()[0]
-        key = ".".join(str(p) for p in err["loc"]) or "?"
-        if err["type"] == "extra_forbidden":
-            raise ValueError(f"{where}: unknown parameter {key!r}") from None
-        raise ValueError(f"{where}: parameter {key!r}: {err['msg']}") from None
+        raise ValueError(validation_message(exc, where)) from None
 
 
 __all__ = ["Control", "EstimatorSpec", "FastVariant", "MatcherSpec", "Scenario", "Stretch"]

@@ -11,7 +11,7 @@ import fusion
 import fusion.monitors
 import matcher
 import worlds
-from matcher.plugin import PATH_PATTERN
+from riverbench.plugins import PATH_PATTERN
 from scenarios.spec.scenario import Scenario
 from worlds.presets import PRESETS
 

@@ -19,10 +19,11 @@ from pathlib import Path
 
 import scenarios
 from scenarios.report.results import EXPECTATION, derived_bound, median_range
+from scenarios.spec.library import LIBRARY as library_dir
 from scenarios.score import baseline as baselines
 
 ROOT = Path(__file__).resolve().parent.parent
-LIBRARY = ROOT / "scenarios" / "library"
+LIBRARY = library_dir
 ITEM = re.compile(r'^(\s*)"([^"]+)"(,?)\s*$')
 
 
@@ -70,6 +71,7 @@ def main() -> int:
     parser.add_argument("--write", action="store_true", help="rewrite the bounds in scenarios/spec/library/*.toml")
     args = parser.parse_args()
     for path in args.baselines:
+        path = path.resolve()
         base = baselines.load(path)
         source = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else path.name
         for name, runs in sorted(base.scenarios.items()):

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import scenarios
 from riverbench.atomic import atomic_path
-from scenarios.report.results import library_markdown, replace_block, results_markdown
+from scenarios.report.results import library_markdown, other_baseline_section, replace_block, results_markdown
 from scenarios.score import baseline as baselines
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -35,7 +35,14 @@ def generated(baseline_path: Path = BASELINE) -> dict[Path, str]:
     """The text each generated file must have, from the baseline."""
     base = baselines.load(baseline_path)
     readme = ROOT / "README.md"
-    return {ROOT / "docs" / "results.md": results_markdown(base, library_expectations(base.fast)),
+    results = results_markdown(base, library_expectations(base.fast))
+    for other in sorted(baseline_path.parent.glob("*.json")):
+        if other.resolve() == Path(baseline_path).resolve():
+            continue
+        extra = baselines.load(other)
+        title = f"{', '.join(sorted(extra.scenarios))} ({'fast variants' if extra.fast else 'full length'})"
+        results += "\n" + other_baseline_section(title, str(other.relative_to(ROOT)), extra, library_expectations(extra.fast))
+    return {ROOT / "docs" / "results.md": results,
             readme: replace_block(readme.read_text(encoding="utf-8"), library_markdown(base))}
 
 

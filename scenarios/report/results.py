@@ -172,6 +172,22 @@ def results_markdown(base: Baseline, expectations: dict[str, list[str]]) -> str:
     ])
 
 
+def other_baseline_section(title: str, source: str, base: Baseline, expectations: dict[str, list[str]]) -> str:
+    """A section of docs/results.md for a baseline besides the library's (e.g. quickstart's full-length runs)."""
+    return "\n".join([
+        f"## {title}",
+        "",
+        f"From `{source}`, {stamp(base)}. APE p95 of each estimator in metres:",
+        "",
+        cross_table(base, ESTIMATORS, "estimators.{id}.ape.p95"),
+        "",
+        _windows_table(base),
+        "",
+        expectation_table(base, expectations),
+        "",
+    ])
+
+
 def replace_block(text: str, block: str) -> str:
     """text with the part between BEGIN and END replaced by block (ValueError when the markers are missing)."""
     start, end = text.find(BEGIN), text.find(END)

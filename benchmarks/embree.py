@@ -47,11 +47,11 @@ from sim.visibility import PROBES, START_OFFSET_M
 
 # ---------------------------------------------------------------------------------------------- scenes
 
+
 def open3d_scene(mesh: trimesh.Trimesh) -> o3d.t.geometry.RaycastingScene:
     """As worlds.world._scene builds it; the first cast commits Embree's BVH, so it is part of the build."""
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
-                        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)))
+    scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)), o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)))
     scene.cast_rays(o3d.core.Tensor(np.array([[0, 0, 1e4, 0, 0, 1]], dtype=np.float32)))
     return scene
 
@@ -71,6 +71,7 @@ def fresh(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
 
 
 # ------------------------------------------------------------------------------------------------- rays
+
 
 def time_near(traj: Trajectory, station_m: float) -> float:
     """The time the vessel reaches route station `station_m`."""
@@ -145,6 +146,7 @@ def gnss_rays(world: worlds.World) -> dict:
 
 # ---------------------------------------------------------------------------------------------- queries
 
+
 def o3d_first(scene, rays: np.ndarray, nthreads: int = 0) -> dict:
     hit = scene.cast_rays(o3d.core.Tensor.from_numpy(rays), nthreads=nthreads)
     return {k: hit[k].numpy() for k in ("t_hit", "primitive_ids", "primitive_normals")}
@@ -169,6 +171,7 @@ def embree_location(intersector: RayMeshIntersector, rays: np.ndarray, multiple:
 
 # -------------------------------------------------------------------------------------------- agreement
 
+
 def first_agreement(ref: dict, tri: np.ndarray, loc: tuple, n: int) -> dict:
     hit_o3d = np.isfinite(ref["t_hit"])
     hit_emb = tri != -1
@@ -177,10 +180,15 @@ def first_agreement(ref: dict, tri: np.ndarray, loc: tuple, n: int) -> dict:
     d[loc[0]] = loc[1]
     loc_hit = np.isfinite(d)
     diff = np.abs(d[both & loc_hit] - ref["t_hit"][both & loc_hit])
-    return dict(verdict=float((hit_o3d == hit_emb).mean()), n_disagree=int((hit_o3d != hit_emb).sum()),
-                same_tri=float((ref["primitive_ids"][both] == tri[both]).mean()) if both.any() else 1.0,
-                max_dd=float(diff.max()) if len(diff) else 0.0, p999_dd=float(np.quantile(diff, 0.999)) if len(diff) else 0.0,
-                loc_verdict=float((hit_o3d == loc_hit).mean()), hits=int(hit_o3d.sum()))
+    return dict(
+        verdict=float((hit_o3d == hit_emb).mean()),
+        n_disagree=int((hit_o3d != hit_emb).sum()),
+        same_tri=float((ref["primitive_ids"][both] == tri[both]).mean()) if both.any() else 1.0,
+        max_dd=float(diff.max()) if len(diff) else 0.0,
+        p999_dd=float(np.quantile(diff, 0.999)) if len(diff) else 0.0,
+        loc_verdict=float((hit_o3d == loc_hit).mean()),
+        hits=int(hit_o3d.sum()),
+    )
 
 
 def _per_ray(ray: np.ndarray, d: np.ndarray, n: int, merge_m: float) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -201,9 +209,14 @@ def multi_agreement(ref: tuple, emb: tuple, n: int, merge_m: float) -> dict:
         same = c_o3d == c_emb
         verdict = (c_o3d > 0) == (c_emb > 0)
         dd = np.array([np.abs(d_o3d[i] - d_emb[i]).max() for i in np.flatnonzero(same & (c_o3d > 0))])
-        out[tag] = dict(same_count=float(same.mean()), verdict=float(verdict.mean()), max_dd=float(dd.max()) if len(dd) else 0.0,
-                        p999_dd=float(np.quantile(dd, 0.999)) if len(dd) else 0.0,
-                        more_o3d=int((c_o3d > c_emb).sum()), more_emb=int((c_emb > c_o3d).sum()))
+        out[tag] = dict(
+            same_count=float(same.mean()),
+            verdict=float(verdict.mean()),
+            max_dd=float(dd.max()) if len(dd) else 0.0,
+            p999_dd=float(np.quantile(dd, 0.999)) if len(dd) else 0.0,
+            more_o3d=int((c_o3d > c_emb).sum()),
+            more_emb=int((c_emb > c_o3d).sum()),
+        )
     return out
 
 
@@ -216,15 +229,15 @@ def gnss_verdicts(g: dict, mesh: trimesh.Trimesh, loc: tuple) -> dict:
     normals = np.zeros((len(rays), 3))
     normals[loc[0]] = mesh.face_normals[loc[2]]
     inside = bool(np.isfinite(t_hit[:p]).all() and ((normals[:p] * PROBES).sum(1) > 0).all())
-    los = np.isinf(t_hit[p:p + m])
-    leg = np.linalg.norm(g["antenna"] - rays[p + m + k:, :3], axis=1)
-    clear = np.isinf(t_hit[p + m:p + m + k]) & (t_hit[p + m + k:] >= leg - START_OFFSET_M)
+    los = np.isinf(t_hit[p : p + m])
+    leg = np.linalg.norm(g["antenna"] - rays[p + m + k :, :3], axis=1)
+    clear = np.isinf(t_hit[p + m : p + m + k]) & (t_hit[p + m + k :] >= leg - START_OFFSET_M)
     ref = g["paths"]
-    return dict(los=int((los == ref.los).sum()), m=m, clear=int((clear == ref.reflection_clear).sum()), k=k,
-                inside=inside == ref.inside_solid)
+    return dict(los=int((los == ref.los).sum()), m=m, clear=int((clear == ref.reflection_clear).sum()), k=k, inside=inside == ref.inside_solid)
 
 
 # --------------------------------------------------------------------------------------------- timing
+
 
 def rounds(contenders: dict[str, Callable[[], object]], n_rounds: int, reps: int) -> dict[str, list[float]]:
     """Seconds per call of each contender per round; within a round the contenders take turns."""
@@ -273,11 +286,15 @@ def main() -> None:
     canal_solid = trimesh.util.concatenate([p.mesh for p in canal.parts if not p.material.foliage])
     n_l, n_g = len(lidar), len(g["rays"])
     print(f"open3d {o3d.__version__}, trimesh {trimesh.__version__}; rounds {args.rounds} (A, B, ... per round)")
-    print(f"(a) charles_river, {len(river.mesh.faces)} triangles: one HDL-32E revolution, {n_l} rays, station "
-          f"{station:.0f} m ({args.before:g} m before {args.bridge}'s middle)")
-    print(f"(b) canal_lock, {len(canal_solid.faces)} solid triangles ({len(canal.mesh.faces)} with foliage): one GNSS epoch at "
-          f"station {g['station']:.0f} m (t={g['t']:.1f} s; {g['left']} / {g['right']} building vertices left / right), "
-          f"{n_g} rays = {len(PROBES)} probes + {g['m']} sky + 2 x {g['k']} reflection legs")
+    print(
+        f"(a) charles_river, {len(river.mesh.faces)} triangles: one HDL-32E revolution, {n_l} rays, station "
+        f"{station:.0f} m ({args.before:g} m before {args.bridge}'s middle)"
+    )
+    print(
+        f"(b) canal_lock, {len(canal_solid.faces)} solid triangles ({len(canal.mesh.faces)} with foliage): one GNSS epoch at "
+        f"station {g['station']:.0f} m (t={g['t']:.1f} s; {g['left']} / {g['right']} building vertices left / right), "
+        f"{n_g} rays = {len(PROBES)} probes + {g['m']} sky + 2 x {g['k']} reflection legs"
+    )
 
     # scene builds (cold meshes), interleaved
     print("\nscene build (construct + first query), median s:")
@@ -292,28 +309,48 @@ def main() -> None:
     gr = g["rays"]
 
     cases = [
-        ("(a) lidar first", n_l, args.reps, {
-            "open3d cast_rays": lambda: o3d_first(s_river, lidar),
-            "embree intersects_first": lambda: embree_first(e_river, lidar),
-            "embree location(first)": lambda: embree_location(e_river, lidar, False),
-            "open3d cast_rays 1 thread": lambda: o3d_first(s_river, lidar, 1),
-        }),
-        ("(b) gnss first", n_g, args.gnss_reps, {
-            "open3d cast_rays": lambda: o3d_first(s_solid, gr),
-            "embree intersects_first": lambda: embree_first(e_solid, gr),
-            "embree location(first)": lambda: embree_location(e_solid, gr, False),
-            "open3d cast_rays 1 thread": lambda: o3d_first(s_solid, gr, 1),
-        }),
-        ("(c) lidar multi", n_l, args.reps, {
-            "open3d list_intersections": lambda: o3d_multi(s_river, lidar),
-            "embree location(multi)": lambda: embree_location(e_river, lidar, True),
-            "open3d list_inters. 1 thread": lambda: o3d_multi(s_river, lidar, 1),
-        }),
-        ("(c) gnss multi", n_g, args.gnss_reps, {
-            "open3d list_intersections": lambda: o3d_multi(s_canal, gr),
-            "embree location(multi)": lambda: embree_location(e_canal, gr, True),
-            "open3d list_inters. 1 thread": lambda: o3d_multi(s_canal, gr, 1),
-        }),
+        (
+            "(a) lidar first",
+            n_l,
+            args.reps,
+            {
+                "open3d cast_rays": lambda: o3d_first(s_river, lidar),
+                "embree intersects_first": lambda: embree_first(e_river, lidar),
+                "embree location(first)": lambda: embree_location(e_river, lidar, False),
+                "open3d cast_rays 1 thread": lambda: o3d_first(s_river, lidar, 1),
+            },
+        ),
+        (
+            "(b) gnss first",
+            n_g,
+            args.gnss_reps,
+            {
+                "open3d cast_rays": lambda: o3d_first(s_solid, gr),
+                "embree intersects_first": lambda: embree_first(e_solid, gr),
+                "embree location(first)": lambda: embree_location(e_solid, gr, False),
+                "open3d cast_rays 1 thread": lambda: o3d_first(s_solid, gr, 1),
+            },
+        ),
+        (
+            "(c) lidar multi",
+            n_l,
+            args.reps,
+            {
+                "open3d list_intersections": lambda: o3d_multi(s_river, lidar),
+                "embree location(multi)": lambda: embree_location(e_river, lidar, True),
+                "open3d list_inters. 1 thread": lambda: o3d_multi(s_river, lidar, 1),
+            },
+        ),
+        (
+            "(c) gnss multi",
+            n_g,
+            args.gnss_reps,
+            {
+                "open3d list_intersections": lambda: o3d_multi(s_canal, gr),
+                "embree location(multi)": lambda: embree_location(e_canal, gr, True),
+                "open3d list_inters. 1 thread": lambda: o3d_multi(s_canal, gr, 1),
+            },
+        ),
     ]
     print(f"\n{'query':16s} {'contender':30s} {'median':>10s} {'rays/s':>10s} {'ratio vs open3d':>16s}")
     for label, n, reps, contenders in cases:
@@ -328,21 +365,27 @@ def main() -> None:
     print("\nagreement, embree vs open3d (same rays):")
     for label, rays, scene, intersector in (("(a) lidar first", lidar, s_river, e_river), ("(b) gnss first", gr, s_solid, e_solid)):
         a = first_agreement(o3d_first(scene, rays), embree_first(intersector, rays), embree_location(intersector, rays, False), len(rays))
-        print(f"  {label:16s} hit/miss verdict {100 * a['verdict']:.3f}% ({a['n_disagree']} of {len(rays)} rays differ; "
-              f"location(first) verdict {100 * a['loc_verdict']:.3f}%), same triangle {100 * a['same_tri']:.3f}% of "
-              f"{a['hits']} hits, |dd| max {a['max_dd'] * 1e3:.2f} mm (p99.9 {a['p999_dd'] * 1e3:.2f} mm)")
+        print(
+            f"  {label:16s} hit/miss verdict {100 * a['verdict']:.3f}% ({a['n_disagree']} of {len(rays)} rays differ; "
+            f"location(first) verdict {100 * a['loc_verdict']:.3f}%), same triangle {100 * a['same_tri']:.3f}% of "
+            f"{a['hits']} hits, |dd| max {a['max_dd'] * 1e3:.2f} mm (p99.9 {a['p999_dd'] * 1e3:.2f} mm)"
+        )
     v = gnss_verdicts(g, canal_solid, embree_location(e_solid, gr, False))
-    print(f"  {'':16s} sim.visibility verdicts from embree: los {v['los']}/{v['m']}, reflection clear {v['clear']}/{v['k']}, "
-          f"inside-solid {'same' if v['inside'] else 'DIFFERENT'}")
+    print(
+        f"  {'':16s} sim.visibility verdicts from embree: los {v['los']}/{v['m']}, reflection clear {v['clear']}/{v['k']}, "
+        f"inside-solid {'same' if v['inside'] else 'DIFFERENT'}"
+    )
     for label, rays, scene, intersector in (("(c) lidar multi", lidar, s_river, e_river), ("(c) gnss multi", gr, s_canal, e_canal)):
         a = multi_agreement(o3d_multi(scene, rays), embree_location(intersector, rays, True)[:2], len(rays), args.merge_m)
         print(f"  {label:16s} hits open3d {a['hits_o3d']}, embree {a['hits_emb']}")
         for tag in ("raw", "merged"):
             r = a[tag]
             what = "raw" if tag == "raw" else f"hits < {args.merge_m * 100:g} cm apart merged"
-            print(f"  {'':16s} {what}: same hit count {100 * r['same_count']:.3f}% (open3d more on {r['more_o3d']}, embree "
-                  f"more on {r['more_emb']} rays), hit/miss verdict {100 * r['verdict']:.3f}%, |dd| on equal-count rays "
-                  f"max {r['max_dd'] * 1e3:.2f} mm (p99.9 {r['p999_dd'] * 1e3:.2f} mm)")
+            print(
+                f"  {'':16s} {what}: same hit count {100 * r['same_count']:.3f}% (open3d more on {r['more_o3d']}, embree "
+                f"more on {r['more_emb']} rays), hit/miss verdict {100 * r['verdict']:.3f}%, |dd| on equal-count rays "
+                f"max {r['max_dd'] * 1e3:.2f} mm (p99.9 {r['p999_dd'] * 1e3:.2f} mm)"
+            )
 
 
 if __name__ == "__main__":

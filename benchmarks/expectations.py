@@ -19,8 +19,8 @@ from pathlib import Path
 
 import scenarios
 from scenarios.report.results import EXPECTATION, derived_bound, median_range
-from scenarios.spec.library import LIBRARY as library_dir
 from scenarios.score import baseline as baselines
+from scenarios.spec.library import LIBRARY as library_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 LIBRARY = library_dir
@@ -33,9 +33,7 @@ def rewrite(text: str, runs, fast_lists: bool, source: str) -> tuple[str, list[s
     section, inside, changes, lists = "", False, [], []
     for i, line in enumerate(lines):
         stripped = line.strip()
-        if stripped.startswith("[") and not stripped.startswith("[["):
-            section = stripped.strip("[]")
-        elif stripped.startswith("[["):
+        if stripped.startswith("[") and not stripped.startswith("[[") or stripped.startswith("[["):
             section = stripped.strip("[]")
         target = (section == "fast") if fast_lists else (section == "")
         if re.match(r"^(stretch = .*\n)?expect = \[", stripped) or stripped.startswith("expect = ["):
@@ -61,7 +59,9 @@ def rewrite(text: str, runs, fast_lists: bool, source: str) -> tuple[str, list[s
         j = i - 1
         while j >= 0 and lines[j].lstrip().startswith("#"):
             j -= 1
-        lines[j + 1:i] = [f"# expectations: bounds derived from the spread over seeds of {source} (benchmarks/expectations.py; values in docs/results.md)"]
+        lines[j + 1 : i] = [
+            f"# expectations: bounds derived from the spread over seeds of {source} (benchmarks/expectations.py; values in docs/results.md)"
+        ]
     return "\n".join(lines), changes
 
 

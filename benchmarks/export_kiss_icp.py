@@ -52,8 +52,12 @@ def main() -> None:
     parser.add_argument("--start-m", type=float, default=350.0)
     parser.add_argument("--end-m", type=float, default=380.0)
     args = parser.parse_args()
-    overrides = [f"stretch={{start_m = {args.start_m}, end_m = {args.end_m}}}", 'matchers=[{id = "kiss_icp", kind = "kiss_icp"}]',
-                 'estimators=[{id = "gps_only", kind = "gps_only"}]', "expect=[]"]
+    overrides = [
+        f"stretch={{start_m = {args.start_m}, end_m = {args.end_m}}}",
+        'matchers=[{id = "kiss_icp", kind = "kiss_icp"}]',
+        'estimators=[{id = "gps_only", kind = "gps_only"}]',
+        "expect=[]",
+    ]
     scenario = scenarios.load("canal_multipath", set=overrides)
     info, frames = open_stream(scenario)
     truth = np.array([f.lidar_pose for f in frames])
@@ -64,10 +68,10 @@ def main() -> None:
         ours = tum_poses(tmp / "run" / "kiss_icp.tum") @ mount  # base_link -> lidar
         export("canal_multipath", "rosbag2", tmp / "bag", set=overrides)
         config = tmp / "kiss.yaml"
-        config.write_text(yaml.safe_dump({"out_dir": str(tmp / "kiss"), "mapping": {"voxel_size": 0.5},
-                                          "registration": {"max_num_threads": 1}}))
-        done = subprocess.run([str(Path(sys.executable).parent / "kiss_icp_pipeline"), str(tmp / "bag"), "--config", str(config)],
-                              capture_output=True, text=True)
+        config.write_text(yaml.safe_dump({"out_dir": str(tmp / "kiss"), "mapping": {"voxel_size": 0.5}, "registration": {"max_num_threads": 1}}))
+        done = subprocess.run(
+            [str(Path(sys.executable).parent / "kiss_icp_pipeline"), str(tmp / "bag"), "--config", str(config)], capture_output=True, text=True
+        )
         if done.returncode != 0:
             raise SystemExit(done.stderr[-2000:])
         theirs = np.load(next((tmp / "kiss" / "latest").glob("*_poses.npy")))

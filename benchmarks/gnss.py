@@ -59,12 +59,13 @@ def main() -> None:
     rx = GnssReceiver()
     share = rx.rate_hz * gnss / (lidar.config.rate_hz * rev)
     print(f"world {args.world}: {len(world.mesh.faces)} triangles; facade index + scene build {setup_s:.2f} s")
-    print(f"GNSS fix:            {gnss:.3f} ms (median of {args.rounds} rounds x {len(times) - 1} fixes at "
-          f"{rate:g} Hz, incl. trajectory.pose; rounds {', '.join(f'{m:.3f}' for m in fix_ms)})")
+    print(
+        f"GNSS fix:            {gnss:.3f} ms (median of {args.rounds} rounds x {len(times) - 1} fixes at "
+        f"{rate:g} Hz, incl. trajectory.pose; rounds {', '.join(f'{m:.3f}' for m in fix_ms)})"
+    )
     print(f"  of which trajectory.pose(t): {pose_ms:.3f} ms (the receiver asks for one pose per fix)")
     print(f"HDL-32E revolution:  {rev:.2f} ms (median of {args.rounds} rounds x {args.revs} revolutions)")
-    print(f"GNSS at {rx.rate_hz:g} Hz adds {100 * share:.2f}% to LiDAR at {lidar.config.rate_hz:g} Hz "
-          f"(target < 5%)")
+    print(f"GNSS at {rx.rate_hz:g} Hz adds {100 * share:.2f}% to LiDAR at {lidar.config.rate_hz:g} Hz (target < 5%)")
 
 
 if __name__ == "__main__":

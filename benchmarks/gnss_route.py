@@ -68,8 +68,7 @@ def plot(r: dict[str, np.ndarray], raw: dict[str, np.ndarray], world_name: str, 
     t = r["t"]
     blackout = r["num_sats"] == 0
     for ax in (ax_err, ax_hdop):
-        ax.fill_between(t, 0, 1, where=blackout, transform=ax.get_xaxis_transform(), color="0.8", lw=0,
-                        label="no raw fix (blackout)")
+        ax.fill_between(t, 0, 1, where=blackout, transform=ax.get_xaxis_transform(), color="0.8", lw=0, label="no raw fix (blackout)")
     ax_err.plot(t, raw["herr"], lw=0.5, color="tab:orange", alpha=0.7, label="raw WLS solution")
     ax_err.plot(t, r["herr"], lw=0.9, color="tab:blue", label="receiver output (internal filter)")
     coast = r["quality"] == 6

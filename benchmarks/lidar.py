@@ -21,8 +21,7 @@ from sim import HDL32E, Scene, Traffic, Trajectory
 from sim.boats import boat
 from sim.movers import Chase, Mover
 
-ESCORT = (("chase", "runabout", 15.0, -6.0), ("ahead", "cruiser", -30.0, 12.0), ("abeam", "cruiser", 0.0, -18.0),
-          ("barge", "barge", -55.0, -15.0))
+ESCORT = (("chase", "runabout", 15.0, -6.0), ("ahead", "cruiser", -30.0, 12.0), ("abeam", "cruiser", 0.0, -18.0), ("barge", "barge", -55.0, -15.0))
 """Boats that keep their place around the ASV (id, kind, metres behind, metres to its left), so every
 revolution along the route has them in view: the costly case (crossing or passing boats are in view
 only for a while)."""
@@ -42,7 +41,7 @@ def main() -> None:
     lidar = HDL32E()
     scene = world.raycasting_scene
     load_s = time.perf_counter() - t_load
-    traffic = Traffic(tuple(Mover(name, *boat(kind), Chase(traj, behind, left)) for name, kind, behind, left in ESCORT[:args.movers]))
+    traffic = Traffic(tuple(Mover(name, *boat(kind), Chase(traj, behind, left)) for name, kind, behind, left in ESCORT[: args.movers]))
     moving = Scene(world, traffic)
     rss_world_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
@@ -77,10 +76,14 @@ def main() -> None:
     print(f"bare cast:      median {np.median(bare_hz):7.1f} rev/s  (min {min(bare_hz):.1f}, max {max(bare_hz):.1f})")
     print(f"ratio full/bare (per round, same run): median {np.median(ratios):.2f}")
     print(f"with {len(traffic)} movers:  median {np.median(moving_hz):7.1f} rev/s  (min {min(moving_hz):.1f}, max {max(moving_hz):.1f})")
-    print(f"ratio movers/static (per round, same run): median {np.median(moving_ratios):.2f} (goal >= 0.80); "
-          f"mover points per revolution: median {np.median(mover_points):.0f}, max {max(mover_points)}")
-    print(f"points per revolution: median {np.median(points):.0f}, p10 {np.percentile(points, 10):.0f}, "
-          f"p90 {np.percentile(points, 90):.0f}, max {max(points)}")
+    print(
+        f"ratio movers/static (per round, same run): median {np.median(moving_ratios):.2f} (goal >= 0.80); "
+        f"mover points per revolution: median {np.median(mover_points):.0f}, max {max(mover_points)}"
+    )
+    print(
+        f"points per revolution: median {np.median(points):.0f}, p10 {np.percentile(points, 10):.0f}, "
+        f"p90 {np.percentile(points, 90):.0f}, max {max(points)}"
+    )
     print(f"peak RSS: {peak_mb:.0f} MB (after loading the world: {rss_world_mb:.0f} MB)")
 
 

@@ -100,8 +100,10 @@ def main() -> None:
         t0 = time.perf_counter()
         sequences = simulate(world, stations, args.scans, args.sea_state, args.seed)
         points = [len(s) for _, scans in sequences for s in scans]
-        print(f"\n{args.world}, {title}: {len(points)} revolutions in {len(stations)} sequences (simulated in "
-              f"{time.perf_counter() - t0:.1f} s); points per scan median {np.median(points):.0f} (min {min(points)}, max {max(points)})")
+        print(
+            f"\n{args.world}, {title}: {len(points)} revolutions in {len(stations)} sequences (simulated in "
+            f"{time.perf_counter() - t0:.1f} s); points per scan median {np.median(points):.0f} (min {min(points)}, max {max(points)})"
+        )
         if args.profile:
             from pyinstrument import Profiler
 
@@ -111,7 +113,10 @@ def main() -> None:
             profiler.stop()
             print(profiler.output_text(unicode=False, color=False))
             continue
-        header = f"{'matcher':9s} {'Hz':>7s} {'cpu Hz':>7s} {'target':>7s} {'pts/scan':>9s} {'success':>8s} {'degen':>6s} {'t err m':>8s} {'yaw err deg':>12s}"
+        header = (
+            f"{'matcher':9s} {'Hz':>7s} {'cpu Hz':>7s} {'target':>7s} {'pts/scan':>9s} {'success':>8s} {'degen':>6s} "
+            f"{'t err m':>8s} {'yaw err deg':>12s}"
+        )
         print(header)
         print("-" * len(header))
         for name in args.matchers.split(","):
@@ -119,10 +124,12 @@ def main() -> None:
             hz = float(np.median([r["hz"] for r in runs]))
             cpu_hz = float(np.median([r["cpu_hz"] for r in runs]))
             r = runs[0]
-            print(f"{name:9s} {hz:7.1f} {cpu_hz:7.1f} {TARGET_HZ.get(name, float('nan')):7.0f} {np.median(points):9.0f} {r['success']:8.2f} "
-                  f"{r['degenerate']:6.2f} {r['t_err']:8.3f} {r['yaw_err']:12.3f}")
-    print("\nt err: median over ok matches; 3-D for 6-DoF matchers, planar (x, y) for bev3dof; load "
-          f"{os.getloadavg()[0]:.2f} at the end")
+            print(
+                f"{name:9s} {hz:7.1f} {cpu_hz:7.1f} {TARGET_HZ.get(name, float('nan')):7.0f} {np.median(points):9.0f} {r['success']:8.2f} "
+                f"{r['degenerate']:6.2f} {r['t_err']:8.3f} {r['yaw_err']:12.3f}"
+            )
+    print(f"\nt err: median over ok matches; 3-D for 6-DoF matchers, planar (x, y) for bev3dof; load {os.getloadavg()[0]:.2f} at the end")
+
 
 if __name__ == "__main__":
     main()

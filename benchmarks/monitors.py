@@ -97,11 +97,19 @@ def causes(fixes: list, after_outage_s: float) -> np.ndarray:
 
 def table(run: dict, names: list[str], measured: np.ndarray, faulty: np.ndarray, label: str, cause: np.ndarray, ax) -> None:
     """Print the monitors' table for one fault definition and draw their ROC on ax."""
-    print(f"\nfaulty: {label}: {faulty.sum()} of {len(faulty)} measured fixes ({faulty.mean():.1%}); "
-          + ", ".join(f"{c} {int((faulty & (cause == c)).sum())}" for c in CAUSES)
-          + " (all fixes: " + ", ".join(f"{c} {int((cause == c).sum())}" for c in CAUSES) + ")")
-    print(f"{'monitor':>13} {'prec':>6} {'recall':>6} {'FA':>6} | {'rec@5%FA':>8} {'(FA)':>6} {'hdop@FA':>7} {'AUC':>5} | "
-          + " ".join(f"{c + '@gate':>11}" for c in CAUSES) + " | " + " ".join(f"{c + '@5%':>10}" for c in CAUSES))
+    print(
+        f"\nfaulty: {label}: {faulty.sum()} of {len(faulty)} measured fixes ({faulty.mean():.1%}); "
+        + ", ".join(f"{c} {int((faulty & (cause == c)).sum())}" for c in CAUSES)
+        + " (all fixes: "
+        + ", ".join(f"{c} {int((cause == c).sum())}" for c in CAUSES)
+        + ")"
+    )
+    print(
+        f"{'monitor':>13} {'prec':>6} {'recall':>6} {'FA':>6} | {'rec@5%FA':>8} {'(FA)':>6} {'hdop@FA':>7} {'AUC':>5} | "
+        + " ".join(f"{c + '@gate':>11}" for c in CAUSES)
+        + " | "
+        + " ".join(f"{c + '@5%':>10}" for c in CAUSES)
+    )
     fa_h, rec_h, _ = roc(run["statistic"]["hdop"][measured], faulty)
     best = ("", -1.0, 0.0)
     for name in names:
@@ -117,8 +125,12 @@ def table(run: dict, names: list[str], measured: np.ndarray, faulty: np.ndarray,
         flagged5 = np.where(np.isnan(stat), -np.inf, stat) >= t5
         per_gate = [_share(flagged, faulty & (cause == c)) for c in CAUSES]
         per_5 = [_share(flagged5, faulty & (cause == c)) for c in CAUSES]
-        print(f"{name:>13} {precision:6.3f} {recall:6.3f} {false_alarm:6.3f} | {r5:8.3f} {fa5:6.3f} {hdop_same:7.3f} {auc(stat, faulty):5.3f} | "
-              + " ".join(f"{v:>11}" for v in per_gate) + " | " + " ".join(f"{v:>10}" for v in per_5))
+        print(
+            f"{name:>13} {precision:6.3f} {recall:6.3f} {false_alarm:6.3f} | {r5:8.3f} {fa5:6.3f} {hdop_same:7.3f} {auc(stat, faulty):5.3f} | "
+            + " ".join(f"{v:>11}" for v in per_gate)
+            + " | "
+            + " ".join(f"{v:>10}" for v in per_5)
+        )
         ax.plot(fa, rec, label=name)
         best = max(best, (name, r5, hdop_same), key=lambda b: b[1])
     met = "met" if best[1] >= 0.9 else "not met"
@@ -142,8 +154,13 @@ def main() -> None:
     parser.add_argument("--t-end", type=float, default=None)
     parser.add_argument("--fault-m", type=float, nargs="+", default=[5.0, 10.0])
     parser.add_argument("--after-outage-s", type=float, default=10.0)
-    parser.add_argument("--monitors", nargs="+", default=list(MONITORS), choices=list(MONITORS),
-                        help="ekf monitor variants to score (hdop is always run: the baseline)")
+    parser.add_argument(
+        "--monitors",
+        nargs="+",
+        default=list(MONITORS),
+        choices=list(MONITORS),
+        help="ekf monitor variants to score (hdop is always run: the baseline)",
+    )
     parser.add_argument("--no-estimators", action="store_true", help="skip pf, gps_only and hdop_switch")
     args = parser.parse_args()
     names = ["hdop"] + [m for m in args.monitors if m != "hdop"]
@@ -164,13 +181,16 @@ def main() -> None:
     cause = causes(run["fix"], args.after_outage_s)[measured]
     n_scans = len(run["scan_stamp"])
     ok = np.mean([item[2].ok for item in rec.items if item[0] == "scan"])
-    print(f"{args.world} [{rec.t_start:.0f}, {rec.t_end:.0f}] s, matcher {args.matcher} (ok {ok:.1%} of {n_scans} scans), seed {args.seed}: "
-          f"recorded in {rec.wall_s:.0f} s wall, {len(estimators)} estimators replayed in {time.perf_counter() - start:.0f} s; "
-          f"{measured.sum()} measured fixes of {len(quality)}")
+    print(
+        f"{args.world} [{rec.t_start:.0f}, {rec.t_end:.0f}] s, matcher {args.matcher} (ok {ok:.1%} of {n_scans} scans), seed {args.seed}: "
+        f"recorded in {rec.wall_s:.0f} s wall, {len(estimators)} estimators replayed in {time.perf_counter() - start:.0f} s; "
+        f"{measured.sum()} measured fixes of {len(quality)}"
+    )
     nominal = np.array([np.hypot(*t.open_sky_error[:2]) for t in truth])
-    print(f"the same receiver under an open sky (nominal error, unobservable to odometry): median {np.median(nominal):.2f} m, "
-          f"p95 {np.percentile(nominal, 95):.2f} m; " + ", ".join(
-              f"over {m:g} m: {np.mean(nominal > m):.1%} of fixes" for m in args.fault_m))
+    print(
+        f"the same receiver under an open sky (nominal error, unobservable to odometry): median {np.median(nominal):.2f} m, "
+        f"p95 {np.percentile(nominal, 95):.2f} m; " + ", ".join(f"over {m:g} m: {np.mean(nominal > m):.1%} of fixes" for m in args.fault_m)
+    )
     definitions = [(f"error > {m:g} m", error > m) for m in args.fault_m]
     definitions += [(f"environment adds > {m:g} m", added > m) for m in args.fault_m]
     fig, axes = plt.subplots(2, len(args.fault_m), figsize=(5.5 * len(args.fault_m), 10), squeeze=False)

@@ -98,8 +98,9 @@ def outage_error(t: np.ndarray, error: np.ndarray, window: tuple[float, float], 
     out, after = (t >= a) & (t < b), (t >= b) & (t < b + after_s)
     first = int(np.searchsorted(t, a))
     start = float(error[first]) if first < len(t) else float("nan")
-    stats = [(float(np.nanmax(e)), float(np.nanmean(e))) if len(e) and np.isfinite(e).any() else (float("nan"),) * 2
-             for e in (error[out], error[after])]
+    stats = [
+        (float(np.nanmax(e)), float(np.nanmean(e))) if len(e) and np.isfinite(e).any() else (float("nan"),) * 2 for e in (error[out], error[after])
+    ]
     return OutageError(start, *stats[0], *stats[1])
 
 
@@ -161,8 +162,10 @@ def run_stretch(args, seed: int, settings: dict, t_start: float, t_end: float | 
     run = replay(rec, {n: fusion.create(n, matcher=args.matcher, **start_pose(rec, args.start_from_truth)) for n in NAMES})
     quality = np.array([f.quality for f in run["fix"]])
     windows = outage_windows(run["fix_stamp"], quality, args.min_outage)
-    print(f"\n{args.world} [{rec.t_start:.0f}, {rec.t_end:.0f}] s, matcher {args.matcher}, seed {seed}: {len(windows)} outage(s) >= {args.min_outage} s: "
-          + ", ".join(f"{a:.1f}-{b:.1f}" for a, b in windows))
+    print(
+        f"\n{args.world} [{rec.t_start:.0f}, {rec.t_end:.0f}] s, matcher {args.matcher}, seed {seed}: "
+        f"{len(windows)} outage(s) >= {args.min_outage} s: " + ", ".join(f"{a:.1f}-{b:.1f}" for a, b in windows)
+    )
     t = run["scan_stamp"]
     error = {n: np.hypot(*(run["estimate"][n][:, :2] - run["truth"][:, :2]).T) for n in NAMES}
     fix_error = np.array([np.hypot(*f.truth.error[:2]) for f in run["fix"]])
@@ -172,15 +175,23 @@ def run_stretch(args, seed: int, settings: dict, t_start: float, t_end: float | 
         for n in NAMES:
             e = outage_error(t, error[n], (a, b), args.after)
             verdict = _verdict(e, args.limit) if n == args.target else ""
-            print(f"{a:6.1f}-{b:6.1f} {n:>12} {e.start:6.2f} {e.out_max:8.2f} {e.out_mean:8.2f} "
-                  f"{e.after_max:9.2f} {e.after_mean:10.2f} {e.added:6.2f} {verdict}")
+            print(
+                f"{a:6.1f}-{b:6.1f} {n:>12} {e.start:6.2f} {e.out_max:8.2f} {e.out_mean:8.2f} "
+                f"{e.after_max:9.2f} {e.after_mean:10.2f} {e.added:6.2f} {verdict}"
+            )
             if n == args.target:
                 target.append(((a, b), e))
         span = (t >= a - args.before) & (t < b + args.after)
         fspan = (run["fix_stamp"] >= a - args.before) & (run["fix_stamp"] < b + args.after)
-        plot_errors(t[span], {n: error[n][span] for n in NAMES}, run["fix_stamp"][fspan], fix_error[fspan], (a, b),
-                    Path(args.out) / f"fusion_outage_{args.world}_s{seed}_{a:.0f}.png",
-                    f"{args.world} seed {seed}: outage {a:.1f}-{b:.1f} s ({args.matcher})")
+        plot_errors(
+            t[span],
+            {n: error[n][span] for n in NAMES},
+            run["fix_stamp"][fspan],
+            fix_error[fspan],
+            (a, b),
+            Path(args.out) / f"fusion_outage_{args.world}_s{seed}_{a:.0f}.png",
+            f"{args.world} seed {seed}: outage {a:.1f}-{b:.1f} s ({args.matcher})",
+        )
     print(f"whole recording ({len(t)} scans): horizontal error at scan times, m")
     for n in NAMES:
         print(f"{n:>12} median {np.nanmedian(error[n]):6.2f}  p95 {np.nanpercentile(error[n], 95):6.2f}  max {np.nanmax(error[n]):6.2f}")
@@ -211,10 +222,12 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=None, help="seeds to run in turn (default: --seed)")
     parser.add_argument("--t-start", type=float, default=0.0, help="record from this time, s (default 0: the whole route)")
     parser.add_argument("--t-end", type=float, default=None, help="record up to this time, s (default: the route's end)")
-    parser.add_argument("--margin", type=float, default=None,
-                        help="simulate only the stretches from this many s before each outage to --after s past it")
-    parser.add_argument("--start-from-truth", action="store_true",
-                        help="over a stretch, start every estimator at the true pose instead of its own GPS alignment")
+    parser.add_argument(
+        "--margin", type=float, default=None, help="simulate only the stretches from this many s before each outage to --after s past it"
+    )
+    parser.add_argument(
+        "--start-from-truth", action="store_true", help="over a stretch, start every estimator at the true pose instead of its own GPS alignment"
+    )
     parser.add_argument("--min-outage", type=float, default=2.0)
     parser.add_argument("--before", type=float, default=40.0, help="plotted seconds before an outage")
     parser.add_argument("--after", type=float, default=20.0, help="seconds after an outage that count towards its error")
@@ -228,14 +241,18 @@ def main() -> None:
     rows = []
     for seed in args.seeds if args.seeds is not None else [args.seed]:
         rows += [(seed, window, e) for window, e in run_seed(args, seed, settings)]
-    print(f"\n{args.target} added error per outage ({args.world}, matcher {args.matcher}, after {args.after:g} s, "
-          f"limit {args.limit:g} m{', ' + ' '.join(args.settings) if args.settings else ''})")
+    print(
+        f"\n{args.target} added error per outage ({args.world}, matcher {args.matcher}, after {args.after:g} s, "
+        f"limit {args.limit:g} m{', ' + ' '.join(args.settings) if args.settings else ''})"
+    )
     print(f"{'seed':>4} {'outage':>13} {'start':>6} {'max':>6} {'added':>6}")
     for seed, (a, b), e in rows:
         print(f"{seed:4d} {a:6.1f}-{b:6.1f} {e.start:6.2f} {max(e.out_max, e.after_max):6.2f} {e.added:6.2f} {_verdict(e, args.limit)}")
     judged = [e for _, _, e in rows if np.isfinite(e.added)]
-    print(f"{sum(e.added <= args.limit for e in judged)} of {len(judged)} outages within {args.limit:g} m"
-          f"{f' ({len(rows) - len(judged)} met before the {args.target} was initialised)' if len(judged) < len(rows) else ''}")
+    print(
+        f"{sum(e.added <= args.limit for e in judged)} of {len(judged)} outages within {args.limit:g} m"
+        f"{f' ({len(rows) - len(judged)} met before the {args.target} was initialised)' if len(judged) < len(rows) else ''}"
+    )
 
 
 if __name__ == "__main__":

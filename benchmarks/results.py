@@ -42,8 +42,7 @@ def generated(baseline_path: Path = BASELINE) -> dict[Path, str]:
         extra = baselines.load(other)
         title = f"{', '.join(sorted(extra.scenarios))} ({'fast variants' if extra.fast else 'full length'})"
         results += "\n" + other_baseline_section(title, str(other.relative_to(ROOT)), extra, library_expectations(extra.fast))
-    return {ROOT / "docs" / "results.md": results,
-            readme: replace_block(readme.read_text(encoding="utf-8"), library_markdown(base))}
+    return {ROOT / "docs" / "results.md": results, readme: replace_block(readme.read_text(encoding="utf-8"), library_markdown(base))}
 
 
 def main() -> int:

@@ -19,8 +19,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-ALL_FOUR = ('matchers=[{id = "gicp", kind = "gicp"}, {id = "kiss_icp", kind = "kiss_icp"}, '
-            '{id = "bev3dof", kind = "bev3dof"}, {id = "pcl6d", kind = "pcl6d"}]')
+ALL_FOUR = (
+    'matchers=[{id = "gicp", kind = "gicp"}, {id = "kiss_icp", kind = "kiss_icp"}, '
+    '{id = "bev3dof", kind = "bev3dof"}, {id = "pcl6d", kind = "pcl6d"}]'
+)
 STACKS = {"default": [], "all4": [ALL_FOUR]}
 TARGET = {"default": 5.0, "all4": 1.5}
 
@@ -30,8 +32,9 @@ def measure(minutes: float, stack: str, workers: int, scenario: str) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         sets = [f"stretch={{start_s = 0.0, end_s = {60.0 * minutes}}}", "expect=[]", *STACKS[stack]]
-        cmd = [sys.executable, "-m", "scenarios.cli", "run", scenario, "--out", str(out), "--quiet", "--no-report",
-               "--workers", str(workers)] + [a for s in sets for a in ("--set", s)]
+        cmd = [sys.executable, "-m", "scenarios.cli", "run", scenario, "--out", str(out), "--quiet", "--no-report", "--workers", str(workers)] + [
+            a for s in sets for a in ("--set", s)
+        ]
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode not in (0, 1):
             raise SystemExit(f"{stack} {minutes} min failed: {done.stderr.strip() or done.stdout.strip()}")

@@ -43,14 +43,18 @@ def main() -> None:
         scan = lidar.scan(world, traj, t0)
         n_water = int(world.part_is_water[scan.points["label"]].sum())
         stats.append(RevolutionStats(float(station), t0, len(scan), n_water, 0.0))
-    print(f"world {args.world} {params or ''}: {len(world.mesh.faces)} triangles, built in {build_s:.2f} s; "
-          f"offset {args.offset} m, stations {args.start:.0f}-{end:.0f} every {args.step} m")
+    print(
+        f"world {args.world} {params or ''}: {len(world.mesh.faces)} triangles, built in {build_s:.2f} s; "
+        f"offset {args.offset} m, stations {args.start:.0f}-{end:.0f} every {args.step} m"
+    )
     table = {"all": point_stats(np.array([s.n_points for s in stats]), np.array([s.n_water for s in stats]))}
     table |= by_stretch(world, stats) if args.offset == 0.0 else {}
     print(f"{'stretch':16s} {'revs':>5s} {'median':>7s} {'p10':>7s} {'p90':>7s} {'in band':>8s} {'water':>7s}")
     for name, row in table.items():
-        print(f"{name:16s} {row['revolutions']:5d} {row['median']:7.0f} {row['p10']:7.0f} {row['p90']:7.0f} "
-              f"{row['share_in_field_study_band']:8.0%} {row['water_return_share']:7.2%}")
+        print(
+            f"{name:16s} {row['revolutions']:5d} {row['median']:7.0f} {row['p10']:7.0f} {row['p90']:7.0f} "
+            f"{row['share_in_field_study_band']:8.0%} {row['water_return_share']:7.2%}"
+        )
 
 
 if __name__ == "__main__":

@@ -81,8 +81,9 @@ def build(world_name: str, seed: int, settings: dict | None = None) -> Stream:
     return Stream(scene, trajectory, sim.HDL32E(seed=seed, **opts["lidar"]), GnssReceiver(seed=seed, **opts["gnss"]), opts["matcher"])
 
 
-def record(world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None, every_s: float = 120.0,
-           settings: dict | None = None) -> Recording:
+def record(
+    world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None, every_s: float = 120.0, settings: dict | None = None
+) -> Recording:
     """Simulate the real stack (world, Trajectory, HDL32E, GnssReceiver, matcher) once and keep what the filters see."""
     stream = build(world_name, seed, settings)
     trajectory = stream.trajectory
@@ -117,9 +118,15 @@ def add_recording_args(parser) -> None:
     parser.add_argument("--matcher", default="gicp")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="benchmarks/out")
-    parser.add_argument("--set", dest="settings", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                        help=f"extra keyword argument for the stream, section one of {', '.join(SECTIONS)} "
-                             "(e.g. world.buildings=false, lidar.range_noise_m=0.03); repeatable")
+    parser.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help=f"extra keyword argument for the stream, section one of {', '.join(SECTIONS)} "
+        "(e.g. world.buildings=false, lidar.range_noise_m=0.03); repeatable",
+    )
 
 
 def settings_tag(settings: dict | None) -> str:
@@ -129,8 +136,9 @@ def settings_tag(settings: dict | None) -> str:
     return "_set" + hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:8]
 
 
-def load_or_record(out: Path, world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None,
-                   settings: dict | None = None) -> Recording:
+def load_or_record(
+    out: Path, world_name: str, matcher_name: str, seed: int, t_start: float, t_end: float | None, settings: dict | None = None
+) -> Recording:
     """The cached recording for these settings, or a fresh one written atomically (temp name, then rename)."""
     span = f"{t_start:g}-{'end' if t_end is None else f'{t_end:g}'}"
     path = out / f"stream_{world_name}_{matcher_name}_s{seed}_{span}{settings_tag(settings)}_{code_digest()}.pkl"

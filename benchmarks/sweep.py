@@ -24,8 +24,12 @@ from scenarios.spec.library import load
 
 def plan(runs: int, seconds: float) -> SweepPlan:
     noise = ",".join(f"{0.01 + 0.005 * i:g}" for i in range(runs // 2))
-    return SweepPlan(("canal_multipath",), grid=(Axis.parse(f"lidar.range_noise_m={noise}"),), seeds=2,
-                     fixed=(f"stretch={{start_s = 60.0, end_s = {60.0 + seconds}}}",))
+    return SweepPlan(
+        ("canal_multipath",),
+        grid=(Axis.parse(f"lidar.range_noise_m={noise}"),),
+        seeds=2,
+        fixed=(f"stretch={{start_s = 60.0, end_s = {60.0 + seconds}}}",),
+    )
 
 
 def timed_sweep(p: SweepPlan, backend: str, workers: int) -> tuple[float, list[float]]:
@@ -77,13 +81,17 @@ def main() -> None:
             totals.append(total)
             per_run += walls
         results[(backend, workers)] = total = statistics.median(totals)
-        print(f"{backend:5s} workers {workers}: {total:6.1f} s total, {60 * n / total:5.1f} runs/min, "
-              f"a run inside: median {statistics.median(per_run):.1f} s (min {min(per_run):.1f}, max {max(per_run):.1f})")
+        print(
+            f"{backend:5s} workers {workers}: {total:6.1f} s total, {60 * n / total:5.1f} runs/min, "
+            f"a run inside: median {statistics.median(per_run):.1f} s (min {min(per_run):.1f}, max {max(per_run):.1f})"
+        )
     local1, local2, ray2 = results[("local", 1)], results[("local", 2)], results[("ray", 2)]
     print(f"speed-up of 2 local workers over 1: {local1 / local2:.2f}x")
     start = ray_start_s()
-    print(f"Ray: {ray2 - local2:+.1f} s over the local pool in all ({(ray2 - local2) / n:+.2f} s per run); "
-          f"of that, starting a local Ray instance {start:.1f} s, so {(ray2 - local2 - start) / n:+.2f} s per run beyond it")
+    print(
+        f"Ray: {ray2 - local2:+.1f} s over the local pool in all ({(ray2 - local2) / n:+.2f} s per run); "
+        f"of that, starting a local Ray instance {start:.1f} s, so {(ray2 - local2 - start) / n:+.2f} s per run beyond it"
+    )
 
 
 if __name__ == "__main__":

@@ -28,8 +28,12 @@ def episode(env, seed: int, policy) -> tuple[float, int, dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenario", default="harvard_beam_bridge")
-    parser.add_argument("--set", action="append", default=["stretch={start_m=1650.0, end_m=1710.0}"],
-                        help="scenario overrides (default: 60 m under the Harvard Bridge)")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=["stretch={start_m=1650.0, end_m=1710.0}"],
+        help="scenario overrides (default: 60 m under the Harvard Bridge)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frame", help="save the last frame of the baseline episode to this PNG")
     args = parser.parse_args()
@@ -44,9 +48,11 @@ def main() -> None:
     random = episode(env, args.seed, lambda obs: rng.uniform(-1.0, 1.0, 2).astype(np.float32))
     env.close()
     for name, (ret, steps, info) in (("baseline autopilot", baseline), ("random actions", random)):
-        print(f"{name:>18}: return {ret:8.1f} over {steps} steps ({steps / 10:.1f} s), {info['outcome']}, "
-              f"station {info['true_station_m']:.1f} m, |cross-track| {abs(info['true_cross_track_m']):.1f} m, "
-              f"clearance {info['clearance_m']:.1f} m")
+        print(
+            f"{name:>18}: return {ret:8.1f} over {steps} steps ({steps / 10:.1f} s), {info['outcome']}, "
+            f"station {info['true_station_m']:.1f} m, |cross-track| {abs(info['true_cross_track_m']):.1f} m, "
+            f"clearance {info['clearance_m']:.1f} m"
+        )
 
 
 if __name__ == "__main__":

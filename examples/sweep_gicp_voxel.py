@@ -22,13 +22,25 @@ OBJECTIVE = "estimators.ekf.windows.blackout.max_error"
 
 
 def main(out: Path) -> None:
-    plan = SweepPlan(("harvard_beam_bridge",), grid=(Axis.parse("matchers.gicp.params.voxel_m=0.2,0.4,0.8"),), seeds=2,
-                     fixed=("stretch={start_m = 1620.0, end_m = 1720.0}",))
+    plan = SweepPlan(
+        ("harvard_beam_bridge",),
+        grid=(Axis.parse("matchers.gicp.params.voxel_m=0.2,0.4,0.8"),),
+        seeds=2,
+        fixed=("stretch={start_m = 1620.0, end_m = 1720.0}",),
+    )
     points = plan.points()
     check_metric(OBJECTIVE, points)
-    result = run_sweep(plan, out / "sweep", workers=2, lean=True, points=points,
-                       on_row=lambda r: print(f"{r['status']}: voxel {r['param.matchers.gicp.params.voxel_m']} m, seed {r['seed']}, "
-                                              f"ekf blackout max {r.get(OBJECTIVE, float('nan')):.2f} m"))
+    result = run_sweep(
+        plan,
+        out / "sweep",
+        workers=2,
+        lean=True,
+        points=points,
+        on_row=lambda r: print(
+            f"{r['status']}: voxel {r['param.matchers.gicp.params.voxel_m']} m, seed {r['seed']}, "
+            f"ekf blackout max {r.get(OBJECTIVE, float('nan')):.2f} m"
+        ),
+    )
     for group in rank(result.rows, OBJECTIVE):
         seeds = ", ".join(f"{v:.2f}" for v in group.values)
         print(f"voxel {group.params['matchers.gicp.params.voxel_m']} m: median {group.median:.2f} m (seeds: {seeds})")

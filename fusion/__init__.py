@@ -59,8 +59,7 @@ def _plugin(name: str) -> type[Any]:
     """The plugin estimator class `name` names (checked), or a ValueError listing the known names."""
     if not plugins.is_path(name) and name not in plugins.names(GROUP):
         raise ValueError(f"unknown estimator '{name}' (available: {', '.join(available())}, or a plugin 'package.module:Class')")
-    return plugins.load(name, GROUP, "estimator", methods=("add_fix", "add_match"), properties=("pose", "cov"),
-                        params=BaseEstimatorParams)
+    return plugins.load(name, GROUP, "estimator", methods=("add_fix", "add_match"), properties=("pose", "cov"), params=BaseEstimatorParams)
 
 
 __all__ = ["GROUP", "BaseEstimatorParams", "Estimator", "Event", "Verdict", "available", "built_in", "create", "monitors", "params_model"]

@@ -39,8 +39,9 @@ class Bootstrap:
     is the GPS course (the boat moving forward). Only the last `window_s` of fixes are kept; the fit
     is computed only when asked for (start-up, re-lock), not on every fix."""
 
-    def __init__(self, baseline_m: float, min_fixes: int, max_hdop: float, lever: np.ndarray,
-                 max_yaw_sd_deg: float = 5.0, window_s: float = 120.0) -> None:
+    def __init__(
+        self, baseline_m: float, min_fixes: int, max_hdop: float, lever: np.ndarray, max_yaw_sd_deg: float = 5.0, window_s: float = 120.0
+    ) -> None:
         self.window_s = window_s
         self.max_yaw_var = np.radians(max_yaw_sd_deg) ** 2
         self.baseline_m = baseline_m
@@ -106,6 +107,7 @@ class Bootstrap:
         yaw_var = sigma2 / max(spread, 1e-9)
         cov = np.diag([sigma2, sigma2, yaw_var])
         return Alignment(self._samples[-1].stamp, world, cov)
+
     def _course(self, gps: np.ndarray, sigma2: float) -> Alignment:
         """Heading from the GPS course over the most recent travel long enough for the heading
         threshold (a shorter chord follows a turning boat better)."""

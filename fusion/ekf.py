@@ -39,9 +39,10 @@ class EkfParams(MotionModelParams):
     )
     position_walk_sigma: float = Field(0.02, ge=0, description="extra position random walk, m/sqrt(s) [0.02]")
     odom_gate_prob: float = Field(
-        0.999999, gt=0.5, lt=1.0,
-        description="chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a matcher failure "
-        "[0.999999, gate at 30.7]",
+        0.999999,
+        gt=0.5,
+        lt=1.0,
+        description="chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a matcher failure [0.999999, gate at 30.7]",
     )
 
 
@@ -73,8 +74,8 @@ class Ekf(Estimator):
         now = self.odometry.pose_at(alignment.stamp)
         velocity = self.odometry.velocity()
         if velocity is not None:  # the last step's rate; as uncertain as the step says, within bounds
-            self.x[V:W + 1] = velocity[0]
-            self.P[V:W + 1, V:W + 1] = np.diag(np.clip(np.diag(velocity[1]), [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))
+            self.x[V : W + 1] = velocity[0]
+            self.P[V : W + 1, V : W + 1] = np.diag(np.clip(np.diag(velocity[1]), [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))
         clone = alignment.pose
         last_pose = self.odometry.last_pose
         if now is not None and last_pose is not None and self.odometry.last_stamp == self._ref_stamp:
@@ -134,11 +135,11 @@ class Ekf(Estimator):
             return ""
         cth = self.x[CTH]
         r_t = rot2(cth).T
-        d = self.x[X:Y + 1] - self.x[CX:CY + 1]
+        d = self.x[X : Y + 1] - self.x[CX : CY + 1]
         h = np.r_[r_t @ d, wrap_angle(self.x[TH] - cth)]
         H = np.zeros((3, N))
-        H[:2, X:Y + 1] = r_t
-        H[:2, CX:CY + 1] = -r_t
+        H[:2, X : Y + 1] = r_t
+        H[:2, CX : CY + 1] = -r_t
         H[:2, CTH] = drot2(cth).T @ d
         H[2, TH], H[2, CTH] = 1.0, -1.0
         y = step - h
@@ -166,9 +167,9 @@ class Ekf(Estimator):
     def _gps_model(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted antenna fix, its Jacobian and the measurement noise for this fix."""
         th = self.x[TH]
-        h = self.x[X:Y + 1] + rot2(th) @ self.lever
+        h = self.x[X : Y + 1] + rot2(th) @ self.lever
         H = np.zeros((2, N))
-        H[:, X:Y + 1] = np.eye(2)
+        H[:, X : Y + 1] = np.eye(2)
         H[:, TH] = drot2(th) @ self.lever
         if not self._correlated():
             return h, H, obs.cov
@@ -199,9 +200,9 @@ class Ekf(Estimator):
 
     def _relock(self, obs: FixObservation) -> None:
         xy = obs.xy - rot2(self.x[TH]) @ self.lever
-        shift = xy - self.x[X:Y + 1]
-        self.x[X:Y + 1] = xy
-        self.x[CX:CY + 1] += shift
+        shift = xy - self.x[X : Y + 1]
+        self.x[X : Y + 1] = xy
+        self.x[CX : CY + 1] += shift
         self.x[BIAS] = 0.0
         for block in (slice(X, Y + 1), BIAS, slice(CX, CY + 1)):
             self.P[block, :] = 0.0
@@ -212,7 +213,7 @@ class Ekf(Estimator):
         self.P[BIAS, BIAS] = np.eye(2) * self._bias_var
 
     def _body_velocity(self) -> np.ndarray:
-        return self.x[V:VL + 1].copy()
+        return self.x[V : VL + 1].copy()
 
     def _heading(self) -> tuple[float, float]:
         return float(self.x[TH]), float(self.P[TH, TH])

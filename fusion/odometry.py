@@ -109,9 +109,9 @@ class OdometryTrack:
         end = pose_b[:2] + rot2(pose_b[2]) @ lever
         cov = np.zeros((2, 2))
         if hi >= lo:
-            before = np.array(self._poses[lo - 1:hi])  # poses before each step
-            after = np.array(self._poses[lo:hi + 1])
-            covs = np.array(self._covs[lo:hi + 1])
+            before = np.array(self._poses[lo - 1 : hi])  # poses before each step
+            after = np.array(self._poses[lo : hi + 1])
+            covs = np.array(self._covs[lo : hi + 1])
             if b[1] + 1 > len(self._stamps) - 1:  # extrapolating past the last node: part of its step again
                 before = np.vstack([before, self._poses[-1]])
                 after = np.vstack([after, pose_b])

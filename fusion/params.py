@@ -13,7 +13,8 @@ class BaseEstimatorParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     matcher: str = Field(
-        "gicp", min_length=1,
+        "gicp",
+        min_length=1,
         description="name of the matcher whose odometry this estimator uses [gicp: it reports a covariance with its "
         "degenerate directions, which kiss_icp does not]",
     )
@@ -39,12 +40,14 @@ class EstimatorParams(BaseEstimatorParams):
     """Parameters the built-in estimators share beyond BaseEstimatorParams': GPS error model, start-up alignment, odometry noise, re-lock."""
 
     uere_m: float = Field(
-        3.0, gt=0,
+        3.0,
+        gt=0,
         description="range error scale; a fix's per-axis sigma is uere_m * HDOP / sqrt(2) [3.0, i.e. about 2.5 m CEP50 "
         "at HDOP 1, a consumer receiver]",
     )
     gps_correlation_s: float = Field(
-        30.0, ge=0,
+        30.0,
+        ge=0,
         description="time constant of the receiver's position error: its own filter and slowly changing multipath make "
         "consecutive fixes' errors alike, so the filters carry it as a first-order Gauss-Markov bias, and displacement "
         "tests expect a difference variance that grows as 1 - exp(-dt / gps_correlation_s) [30 s, as the simulated "
@@ -56,56 +59,61 @@ class EstimatorParams(BaseEstimatorParams):
         description="(x, y, yaw_deg) of base_link at the first input if known, with initial_sigma [None]; otherwise the "
         "pose is found at start-up by aligning the odometry track with GPS over init_baseline_m",
     )
-    initial_sigma: tuple[float, float] = Field(
-        (1.0, 5.0), description="(metres, degrees) standard deviation of a given initial_pose [(1.0, 5.0)]"
-    )
+    initial_sigma: tuple[float, float] = Field((1.0, 5.0), description="(metres, degrees) standard deviation of a given initial_pose [(1.0, 5.0)]")
     init_baseline_m: float = Field(
-        10.0, gt=0,
+        10.0,
+        gt=0,
         description="start-up alignment needs at least this much GPS travel [10 m]; a re-lock re-aligns the same way when it can",
     )
     init_min_fixes: int = Field(
         5, ge=2, description="start-up alignment needs at least this many fixes [5]; a re-lock re-aligns the same way when it can"
     )
     init_max_hdop: float = Field(
-        2.5, gt=0,
+        2.5,
+        gt=0,
         description="start-up alignment uses only fixes with at most this HDOP [2.5]; a re-lock re-aligns the same way when it can",
     )
     init_max_yaw_sd_deg: float = Field(
-        5.0, gt=0,
+        5.0,
+        gt=0,
         description="start-up alignment needs a heading whose standard deviation (from the fit's residuals) is at most "
         "this [5 deg]; a re-lock re-aligns the same way when it can",
     )
     default_odom_sigma_m: float = Field(
-        0.2, gt=0,
+        0.2,
+        gt=0,
         description="per-scan translation noise assumed when a match has no covariance [0.2 m: kiss_icp, which has none, "
         "can lose the whole along-track motion of a scan on open water]",
     )
-    default_odom_sigma_yaw_deg: float = Field(
-        0.5, gt=0, description="per-scan yaw noise assumed when a match has no covariance [0.5 deg]"
-    )
+    default_odom_sigma_yaw_deg: float = Field(0.5, gt=0, description="per-scan yaw noise assumed when a match has no covariance [0.5 deg]")
     odom_floor_sigma_m: float = Field(
-        0.03, ge=0,
+        0.03,
+        ge=0,
         description="per-scan translation noise added to every reported match covariance, since Hessian covariances are optimistic [0.03 m]",
     )
     odom_floor_sigma_yaw_deg: float = Field(
-        0.2, ge=0,
+        0.2,
+        ge=0,
         description="per-scan yaw noise added to every reported match covariance, since Hessian covariances are optimistic [0.2 deg]",
     )
     odom_unobserved_sigma_m: float = Field(
-        0.5, gt=0,
+        0.5,
+        gt=0,
         description="a match direction whose reported per-scan sigma exceeds this carries no information (a degenerate "
         "ICP leaves its prior there, not a measurement): its variance is raised to 1e6 m^2, so that the filter takes that "
         "direction from its motion model and GPS [0.5 m, more than the boat moves in a scan]",
     )
     odom_slip_frac: float = Field(
-        0.1, ge=0,
+        0.1,
+        ge=0,
         description="a match that did not slip (see odom_slip_sigmas) has its variance along the direction of motion "
         "raised by (odom_slip_frac * the expected motion)^2 [0.1: gicp's along-track error is now about 1% of the motion "
         "outside degenerate stretches (benchmarks/outages.py); at 1.0 the filter's speed came from GPS alone and lagged "
         "the boat's speed changes into every blackout; 0 turns it off]",
     )
     odom_slip_sigmas: float = Field(
-        3.0, ge=0,
+        3.0,
+        ge=0,
         description="scan matchers on sparse river scans can slip along the direction of motion (a flat wall, a deck "
         "overhead or open water leaves it weakly constrained) with an optimistic covariance. A match that falls short of "
         "the motion the filter expects along that direction by more than this many of its own sigma slipped: that "
@@ -113,7 +121,8 @@ class EstimatorParams(BaseEstimatorParams):
         "weighting: no motion at all, +-1 cm, for 15 s) [3.0; 0 turns it off]",
     )
     relock_s: float = Field(
-        30.0, gt=0,
+        30.0,
+        gt=0,
         description="after this long with every measured fix refused although fixes keep coming, the filter re-locks "
         "onto GPS (position reset to the latest fix, monitor restarted), recorded as an event; fixes refused on their "
         "own evidence (an NLOS C/N0, a high HDOP) neither count nor become the re-lock point [30 s]",
@@ -124,7 +133,8 @@ class MotionModelParams(EstimatorParams):
     """Vessel motion and GPS error model shared by the ekf and the pf."""
 
     accel_sigma: float = Field(
-        0.2, gt=0,
+        0.2,
+        gt=0,
         description="white-noise acceleration density of the forward body velocity, m/s^2/sqrt(Hz) [0.2: loose enough "
         "that the speed follows the scan matcher's through the boat's speed changes (the simulated trajectory "
         "accelerates at up to 0.03 m/s^2), which is what the filter coasts on where a deck or a lock leaves the motion "
@@ -133,13 +143,12 @@ class MotionModelParams(EstimatorParams):
         "stop (at 0.3 one seed in six lost the boat so)]",
     )
     lateral_accel_sigma: float = Field(
-        0.05, gt=0,
+        0.05,
+        gt=0,
         description="white-noise acceleration density of the sideways body velocity, m/s^2/sqrt(Hz) [0.05: a boat hardly crabs]",
     )
     yaw_accel_sigma_deg: float = Field(3.0, gt=0, description="white-noise acceleration density of the yaw rate, deg/s^2/sqrt(Hz) [3.0]")
-    gps_white_sigma_m: float = Field(
-        0.3, gt=0, description="per-axis white part of the GPS error on top of the correlated bias, m [0.3]"
-    )
+    gps_white_sigma_m: float = Field(0.3, gt=0, description="per-axis white part of the GPS error on top of the correlated bias, m [0.3]")
 
     def bias_variance(self, axis_var: float) -> float:
         """Per-axis variance of the receiver's correlated error, given its total per-axis variance

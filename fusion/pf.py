@@ -35,13 +35,15 @@ class PfParams(MotionModelParams):
 
     monitor: str = Field("none", description="GPS integrity monitor [none: the Student-t likelihood copes with wrong fixes without a hard gate]")
     lateral_accel_sigma: float = Field(
-        0.2, gt=0,
+        0.2,
+        gt=0,
         description="white-noise acceleration density of the sideways body velocity, m/s^2/sqrt(Hz) [0.2, not the "
         "ekf's 0.05: particles need the wider process noise to stay diverse (with the ekf's earlier 0.1 and 0.05 the "
         "pf's median error over charles_river's first 700 s rose from 3.1 to 4.4 m)]",
     )
     gps_correlation_s: float = Field(
-        0.0, ge=0,
+        0.0,
+        ge=0,
         description="time constant of the receiver's position error (see EstimatorParams) [0: fixes are independent "
         "Student-t draws; with a per-particle Gauss-Markov bias each particle absorbs its own offset into its bias and "
         "the cloud drifts off, p95 8.9 m against 4.0 m over charles_river's first 700 s]",
@@ -49,7 +51,9 @@ class PfParams(MotionModelParams):
     n_particles: int = Field(500, ge=10, description="number of particles [500]")
     gps_dof: float = Field(3.0, gt=0, description="Student-t degrees of freedom of the GPS likelihood [3]")
     resample_ess: float = Field(
-        0.5, gt=0, le=1,
+        0.5,
+        gt=0,
+        le=1,
         description="resample when the effective sample size falls below this share of n_particles [0.5]; resampling "
         "is regularised (Liu-West shrinkage and a kernel shaped like the posterior, optimal bandwidth) plus a floor "
         "roughen_m / roughen_deg",

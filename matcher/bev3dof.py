@@ -39,7 +39,9 @@ class Bev3dofParams(MatcherParams, DegeneracyParams):
     yaw_search_step_deg: float = Field(1.0, gt=0.0, description="yaw_search: step (default 1 deg)")
     yaw_search_range_deg: float = Field(180.0, gt=0.0, le=180.0, description="yaw_search: +- range (default 180 deg)")
     skip_global_max_dt_s: float = Field(
-        0.25, ge=0.0, description="skip the global step (refine from the motion prior, or identity) when scans are at most this far apart (default 0.25 s)"
+        0.25,
+        ge=0.0,
+        description="skip the global step (refine from the motion prior, or identity) when scans are at most this far apart (default 0.25 s)",
     )
     ecc_iterations: int = Field(50, ge=1, description="ECC iterations (default 50)")
     ecc_eps: float = Field(1e-5, gt=0.0, description="ECC convergence threshold (default 1e-5)")
@@ -78,12 +80,12 @@ class _Image:
         self.points_drawn = int(inside.sum())
 
     @classmethod
-    def of(cls, cloud: Cloud, twist: np.ndarray | None, p: Bev3dofParams) -> "_Image":
+    def of(cls, cloud: Cloud, twist: np.ndarray | None, p: Bev3dofParams) -> _Image:
         """Image of the cloud's points inside the height band."""
         band = (cloud.xyz[:, 2] >= p.z_min_m) & (cloud.xyz[:, 2] <= p.z_max_m)
         return cls(cloud.xyz[band, :2], cloud.xyz[band, 2], cloud.time[band], twist, p)
 
-    def with_twist(self, twist: np.ndarray | None) -> "_Image":
+    def with_twist(self, twist: np.ndarray | None) -> _Image:
         """The same points de-skewed with another twist."""
         return self if not twist_changed(self.twist, twist, 1.0, 1e-9, 1e-9) else _Image(self.xy, self.z, self.time, twist, self.p)
 

@@ -22,7 +22,7 @@ class Cloud:
         return len(self.xyz)
 
     @classmethod
-    def from_scan(cls, scan: Scan, min_range_m: float, max_range_m: float) -> "Cloud":
+    def from_scan(cls, scan: Scan, min_range_m: float, max_range_m: float) -> Cloud:
         """Keep points with finite x, y, z and time whose range lies in [min_range_m, max_range_m].
 
         Only geometry and firing time are read: never the simulator's `label` field."""

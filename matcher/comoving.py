@@ -32,8 +32,16 @@ def plane_distance(q: np.ndarray, xyz: np.ndarray, normals: np.ndarray, nearest,
     return out
 
 
-def moving_with_sensor(xyz: np.ndarray, prior: np.ndarray, ref_xyz: np.ndarray, ref_normals: np.ndarray, ref_nearest,
-                       ref_moving: np.ndarray, max_m: float, recall_m: float) -> np.ndarray:
+def moving_with_sensor(
+    xyz: np.ndarray,
+    prior: np.ndarray,
+    ref_xyz: np.ndarray,
+    ref_normals: np.ndarray,
+    ref_nearest,
+    ref_moving: np.ndarray,
+    max_m: float,
+    recall_m: float,
+) -> np.ndarray:
     """Mask of the points of `xyz` (new scan, its frame) that move with the sensor, given the motion
     `prior` (4x4, new frame in the reference's), the reference's points, normals and nearest-point
     query, and the points found moving in the reference (its frame): a point within recall_m of one

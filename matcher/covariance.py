@@ -138,7 +138,9 @@ class FloorParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     floor_sigma_m: float = Field(0.01, ge=0.0, description="std. dev. added to x, y and z (default 1 cm)")
-    floor_sigma_tilt_rad: float = Field(0.003, ge=0.0, description="std. dev. added to roll and pitch: waves defeat constant-velocity de-skew (default 3 mrad)")
+    floor_sigma_tilt_rad: float = Field(
+        0.003, ge=0.0, description="std. dev. added to roll and pitch: waves defeat constant-velocity de-skew (default 3 mrad)"
+    )
     floor_sigma_yaw_rad: float = Field(0.0005, ge=0.0, description="std. dev. added to yaw (default 0.5 mrad)")
 
     def add_to(self, cov: np.ndarray) -> np.ndarray:

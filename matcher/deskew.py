@@ -6,7 +6,8 @@ of the new estimate while that twist still changes (`twist_changed`), at most `r
 
 from __future__ import annotations
 
-from typing import Callable, Protocol, TypeVar
+from collections.abc import Callable
+from typing import Protocol, TypeVar
 
 import numpy as np
 

@@ -55,13 +55,19 @@ class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
     rotation_epsilon_rad: float = Field(1e-5, gt=0.0, description="convergence: rotation update below this (default 1e-5 rad)")
     num_threads: int = Field(1, ge=1, description="threads for small_gicp (default 1: its OpenMP threads spin badly on a busy machine)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
-    min_inlier_share: float = Field(0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within max_correspondence_m (default 0.8)")
+    min_inlier_share: float = Field(
+        0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within max_correspondence_m (default 0.8)"
+    )
     tukey_k_m: float = Field(
         0.15, gt=0.0, description="Tukey width of the point-to-plane residuals that give the covariance and degeneracy (default 0.15 m)"
     )
-    planarity_voxel_m: float = Field(1.0, gt=0.0, description="voxel in which a point's planarity is measured (default 1 m: about its normal's neighbours)")
+    planarity_voxel_m: float = Field(
+        1.0, gt=0.0, description="voxel in which a point's planarity is measured (default 1 m: about its normal's neighbours)"
+    )
     min_planarity: float = Field(
-        0.1, gt=0.0, le=1.0,
+        0.1,
+        gt=0.0,
+        le=1.0,
         description="a reference point less planar than this (a single scan line) counts in the covariance in proportion (default 0.1)",
     )
     drop_comoving: bool = Field(True, description="drop returns from objects keeping station with the sensor, e.g. a chase boat (default true)")
@@ -132,6 +138,7 @@ class Gicp(DeskewingMatcher[_Prepared]):
             if not found:
                 found.append(moving_with_sensor(xyz, prior, ref.xyz, ref.normals, ref.nearest, ref.moving, p.max_correspondence_m, p.voxel_m))
             return found[0]
+
         return screen
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
@@ -143,7 +150,9 @@ class Gicp(DeskewingMatcher[_Prepared]):
             if len(cur.xyz) < 6 or len(ref.xyz) < 6:
                 return None
             res = small_gicp.align(
-                ref.points, cur.points, ref.tree,
+                ref.points,
+                cur.points,
+                ref.tree,
                 init_T_target_source=T,
                 registration_type=p.registration_type,
                 max_correspondence_distance=p.max_correspondence_m,
@@ -158,8 +167,15 @@ class Gicp(DeskewingMatcher[_Prepared]):
             return T, (res, fit, cov_param, degeneracy)
 
         ref, cur, aligned = deskew_rounds(
-            cloud, self._reference(), self.velocity.twist_per_s, prior, dt, p.deskew_iterations,
-            lambda c, twist: self._prepare(c, twist, screen), align, self._prepare,
+            cloud,
+            self._reference(),
+            self.velocity.twist_per_s,
+            prior,
+            dt,
+            p.deskew_iterations,
+            lambda c, twist: self._prepare(c, twist, screen),
+            align,
+            self._prepare,
         )
         if aligned is None:
             self._cur = cur

@@ -105,7 +105,11 @@ class KissIcp(Matcher):
         dist, _ = ref_tree.query(source, distance_upper_bound=3.0 * self.p.voxel_m)
         overlap = float(np.isfinite(dist).mean()) if len(source) else 0.0
         self._pending = (pose, cKDTree(source), cloud)
-        info: dict[str, Any] = {"overlap": overlap, "points_used": int(len(source)), "adaptive_threshold": float(kiss.adaptive_threshold.get_threshold())}
+        info: dict[str, Any] = {
+            "overlap": overlap,
+            "points_used": int(len(source)),
+            "adaptive_threshold": float(kiss.adaptive_threshold.get_threshold()),
+        }
         if overlap < self.p.min_overlap:
             return MatchResult.failure(f"overlap {overlap:.2f} < min_overlap {self.p.min_overlap}", **info)
         return MatchResult(T=T, ok=True, cov=None, n_points=0, seconds=0.0, info=info)

@@ -44,7 +44,9 @@ class Pcl6dParams(MatcherParams, DegeneracyParams, FloorParams):
     ransac_seed: int = Field(0, ge=0, description="seed of Open3D's RANSAC sampler, set before each pre-alignment for repeatable runs (default 0)")
     planar_initial_guess: bool = Field(True, description="keep only x, y, yaw of the pre-alignment as ICP's start (boats stay level; default on)")
     skip_prealign_max_dt_s: float = Field(
-        0.25, ge=0.0, description="skip pre-alignment (start ICP from the motion prior, or identity) when scans are at most this far apart (default 0.25 s)"
+        0.25,
+        ge=0.0,
+        description="skip pre-alignment (start ICP from the motion prior, or identity) when scans are at most this far apart (default 0.25 s)",
     )
     skip_icp_min_fitness: float | None = Field(
         None, gt=0.0, le=1.0, description="skip ICP when pre-alignment inlier share reaches this (and RMSE limit holds); None = always run ICP"
@@ -56,7 +58,9 @@ class Pcl6dParams(MatcherParams, DegeneracyParams, FloorParams):
     gicp_tukey_k: float = Field(1.0, gt=0.0, description="Tukey width for icp='gicp', on its Mahalanobis-weighted residual (default 1)")
     icp_max_iterations: int = Field(30, ge=1, description="ICP iterations (default 30)")
     deskew_iterations: int = Field(2, ge=1, description="de-skew/register rounds; later rounds de-skew with the new estimate (default 2)")
-    min_fitness: float = Field(0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within icp_max_correspondence_m (default 0.8)")
+    min_fitness: float = Field(
+        0.8, ge=0.0, le=1.0, description="fail when a smaller share of points finds a partner within icp_max_correspondence_m (default 0.8)"
+    )
     max_outlier_share: float = Field(0.2, ge=0.0, le=1.0, description="fail when a larger share of partners lies beyond tukey_k_m (default 0.2)")
 
 
@@ -121,10 +125,13 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
         else:
             o3d.utility.random.seed(p.ransac_seed)
             res = reg.registration_ransac_based_on_correspondence(
-                src_pcd, tgt_pcd, corres, p.ransac_distance_m,
-                reg.TransformationEstimationPointToPoint(False), 3,
-                [reg.CorrespondenceCheckerBasedOnEdgeLength(p.edge_length_similarity),
-                 reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m)],
+                src_pcd,
+                tgt_pcd,
+                corres,
+                p.ransac_distance_m,
+                reg.TransformationEstimationPointToPoint(False),
+                3,
+                [reg.CorrespondenceCheckerBasedOnEdgeLength(p.edge_length_similarity), reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m)],
                 reg.RANSACConvergenceCriteria(p.ransac_max_iterations, p.ransac_confidence),
             )
         T = np.asarray(res.transformation)
@@ -132,8 +139,12 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
         src_xyz, tgt_xyz = np.asarray(src_pcd.points)[pairs[:, 0]], np.asarray(tgt_pcd.points)[pairs[:, 1]]
         residual = np.linalg.norm(transform(src_xyz, T[:3, :3], T[:3, 3]) - tgt_xyz, axis=1)
         rejected = float((residual > p.ransac_distance_m).mean()) if len(pairs) else 1.0
-        info = {"prealign_putative": int(len(pairs)), "prealign_rejected_share": rejected,
-                "prealign_fitness": float(res.fitness), "prealign_rmse": float(res.inlier_rmse)}
+        info = {
+            "prealign_putative": int(len(pairs)),
+            "prealign_rejected_share": rejected,
+            "prealign_fitness": float(res.fitness),
+            "prealign_rmse": float(res.inlier_rmse),
+        }
         return T, info
 
     def _icp(self, src: _Prepared, tgt: _Prepared, init: np.ndarray) -> np.ndarray:
@@ -161,11 +172,7 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
         T0, pre = self._prealign(src, tgt)
         info.update(pre, prealigned=True)
         init = planar(T0) if p.planar_initial_guess else T0
-        if (
-            p.skip_icp_min_fitness is not None
-            and pre["prealign_fitness"] >= p.skip_icp_min_fitness
-            and pre["prealign_rmse"] <= p.skip_icp_max_rmse_m
-        ):
+        if p.skip_icp_min_fitness is not None and pre["prealign_fitness"] >= p.skip_icp_min_fitness and pre["prealign_rmse"] <= p.skip_icp_max_rmse_m:
             info["icp_skipped"] = True
             return T0, info
         return self._icp(src, tgt, init), info
@@ -180,8 +187,14 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
             return self._align(cur, ref, T, dt)
 
         ref, cur, aligned = deskew_rounds(
-            cloud, self._reference(), twist, None if twist is None else self.velocity.predict(dt), dt, p.deskew_iterations,
-            self._prepare, align,
+            cloud,
+            self._reference(),
+            twist,
+            None if twist is None else self.velocity.predict(dt),
+            dt,
+            p.deskew_iterations,
+            self._prepare,
+            align,
         )
         self._cur = cur
         if aligned is None:

@@ -25,7 +25,7 @@ class MatchResult:
     info: dict = field(default_factory=dict)
 
     @classmethod
-    def failure(cls, reason: str, n_points: int = 0, seconds: float = 0.0, **info) -> "MatchResult":
+    def failure(cls, reason: str, n_points: int = 0, seconds: float = 0.0, **info) -> MatchResult:
         return cls(T=np.eye(4), ok=False, cov=None, n_points=n_points, seconds=seconds, info={"reason": reason, **info})
 
 

@@ -31,8 +31,9 @@ def names(group: str) -> list[str]:
     return sorted({ep.name for ep in entry_points(group=group)})
 
 
-def load(ref: str, group: str, what: str, methods: tuple[str, ...], properties: tuple[str, ...] = (),
-         params: type[BaseModel] = BaseModel) -> type[Any]:
+def load(
+    ref: str, group: str, what: str, methods: tuple[str, ...], properties: tuple[str, ...] = (), params: type[BaseModel] = BaseModel
+) -> type[Any]:
     """The class `ref` names ('package.module:Class' or an entry-point name in `group`), checked to have
     every method and property listed and a `Params` model subclassing `params`."""
     where = f"{what} plugin {ref!r}"
@@ -58,8 +59,9 @@ def _import_path(ref: str, where: str) -> Any:
     try:
         found = import_module(module_name)
     except Exception as exc:  # a plugin's import may raise anything: report it as one line
-        raise ValueError(f"{where}: cannot import {module_name!r}: {type(exc).__name__}: {exc} "
-                         "(a plugin must be installed or on PYTHONPATH)") from None
+        raise ValueError(
+            f"{where}: cannot import {module_name!r}: {type(exc).__name__}: {exc} (a plugin must be installed or on PYTHONPATH)"
+        ) from None
     for part in qualname.split("."):
         if not hasattr(found, part):
             raise ValueError(f"{where}: module {module_name!r} has no {qualname!r}")

@@ -8,8 +8,7 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
-KEY_PACKAGES = ("numpy", "scipy", "open3d-cpu", "open3d", "trimesh", "kiss-icp", "small-gicp", "opencv-python-headless",
-                "pymap3d", "pydantic")
+KEY_PACKAGES = ("numpy", "scipy", "open3d-cpu", "open3d", "trimesh", "kiss-icp", "small-gicp", "opencv-python-headless", "pymap3d", "pydantic")
 """Distributions whose version can move a metric (the ones absent are left out)."""
 SOURCE = Path(__file__).resolve().parent.parent
 
@@ -30,8 +29,9 @@ def git_state(root: Path) -> dict:
     """{"git_commit": sha, "git_dirty": bool} of the checkout at root; {} when it is none (an installed package)."""
     try:
         sha = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10, check=True)
-        status = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-                                capture_output=True, text=True, timeout=10, check=True)
+        status = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True, timeout=10, check=True
+        )
     except (OSError, subprocess.SubprocessError):
         return {}
     return {"git_commit": sha.stdout.strip(), "git_dirty": bool(status.stdout.strip())}
@@ -52,9 +52,9 @@ def describe(prov: dict) -> str:
     """One line: 'riverbench 0.1.0 at 5f06a21 (+ changes), Python 3.11.7 on Linux x86_64, 2 CPUs'."""
     commit = prov.get("git_commit")
     at = f" at {commit[:7]}{' (+ uncommitted changes)' if prov.get('git_dirty') else ''}" if commit else ""
-    return (f"riverbench {prov.get('riverbench', '?')}{at}, Python {prov.get('python', '?')} on {prov.get('platform', '?')}, "
-            f"{prov.get('cpus', '?')} CPUs")
-
+    return (
+        f"riverbench {prov.get('riverbench', '?')}{at}, Python {prov.get('python', '?')} on {prov.get('platform', '?')}, {prov.get('cpus', '?')} CPUs"
+    )
 
 
 def peak_rss_mb() -> float:

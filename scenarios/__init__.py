@@ -1,8 +1,8 @@
 """The bench users drive: scenario files, the runner, metrics and reports, the CLI.
 
-    scenarios.available()                 -> names in the scenario library
-    scenarios.load("quickstart", set=["lidar.range_noise_m=0.03"], seed=1) -> Scenario
-    scenarios.run(scenario, "runs/x")     -> RunResult (run directory, metrics, expectations)
+scenarios.available()                 -> names in the scenario library
+scenarios.load("quickstart", set=["lidar.range_noise_m=0.03"], seed=1) -> Scenario
+scenarios.run(scenario, "runs/x")     -> RunResult (run directory, metrics, expectations)
 """
 
 from __future__ import annotations

@@ -5,6 +5,7 @@ from __future__ import annotations
 import signal
 from collections.abc import Iterator
 from contextlib import contextmanager
+from datetime import UTC
 from pathlib import Path
 
 import typer
@@ -67,8 +68,12 @@ def preview(
     for column in ("points/rev min", "median", "p90", "max", "in 6k-27k", "water share", "ms/rev"):
         table.add_column(column, justify="right")
     table.add_row(
-        str(ppr["min"]), f"{ppr['median']:.0f}", f"{ppr['p90']:.0f}", str(ppr["max"]),
-        f"{summary['share_in_field_study_band']:.0%}", f"{summary['water_return_share']:.2%}",
+        str(ppr["min"]),
+        f"{ppr['median']:.0f}",
+        f"{ppr['p90']:.0f}",
+        str(ppr["max"]),
+        f"{summary['share_in_field_study_band']:.0%}",
+        f"{summary['water_return_share']:.2%}",
         f"{1e3 * summary['seconds_per_revolution_median']:.1f}",
     )
     console.print(table)
@@ -76,8 +81,15 @@ def preview(
     for column in ("stretch", "revolutions", "points/rev median", "p10", "p90", "in 6k-27k", "water share"):
         stretches.add_column(column, justify="left" if column == "stretch" else "right")
     for name, st in summary["by_stretch"].items():
-        stretches.add_row(name, str(st["revolutions"]), f"{st['median']:.0f}", f"{st['p10']:.0f}", f"{st['p90']:.0f}",
-                          f"{st['share_in_field_study_band']:.0%}", f"{st['water_return_share']:.2%}")
+        stretches.add_row(
+            name,
+            str(st["revolutions"]),
+            f"{st['median']:.0f}",
+            f"{st['p10']:.0f}",
+            f"{st['p90']:.0f}",
+            f"{st['share_in_field_study_band']:.0%}",
+            f"{st['water_return_share']:.2%}",
+        )
     console.print(stretches)
     console.print(f"wrote {out}/preview.png, scan.pcd, summary.json")
 
@@ -168,11 +180,19 @@ def suite(
     scenario: list[str] = typer.Argument(None, help="library names or .toml paths (default: the whole library)"),
     workers: int = typer.Option(2, min=1, help="scenarios run at once"),
     junit: Path = typer.Option(None, help="write JUnit XML here"),
-    fast: bool = typer.Option(None, "--fast/--full", show_default=False,
-                              help="each scenario's short [fast] variant, or the full one (default: full; with --baseline, as the baseline ran)"),
-    seeds: int = typer.Option(None, min=1, show_default=False,
-                              help="run each scenario on this many seeds (its own and the next); default 1, 5 with --save-baseline, "
-                                   "with --baseline the baseline's (or its first N)"),
+    fast: bool = typer.Option(
+        None,
+        "--fast/--full",
+        show_default=False,
+        help="each scenario's short [fast] variant, or the full one (default: full; with --baseline, as the baseline ran)",
+    ),
+    seeds: int = typer.Option(
+        None,
+        min=1,
+        show_default=False,
+        help="run each scenario on this many seeds (its own and the next); default 1, 5 with --save-baseline, "
+        "with --baseline the baseline's (or its first N)",
+    ),
     set_: list[str] = typer.Option([], "--set", help="override a field in every scenario: key=value, repeatable"),
     save_baseline: Path = typer.Option(None, "--save-baseline", help="store every metric of every seed's run in this baseline file"),
     baseline: Path = typer.Option(None, "--baseline", help="judge every metric against this baseline file; exit 1 on a regression"),
@@ -181,7 +201,7 @@ def suite(
     quiet: bool = typer.Option(False, "--quiet", help="no per-scenario lines"),
 ) -> None:
     """Run scenarios as a regression suite; exit 1 when an expectation fails, a scenario crashes or (--baseline) a metric regressed."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     import scenarios
     from riverbench import provenance
@@ -199,7 +219,7 @@ def suite(
                 raise ValueError(f"baseline {baseline} has none of these scenarios (it has: {', '.join(sorted(stored.scenarios))})")
         fast = bool(fast)
         jobs = _suite_jobs(sources, names, seeds, stored, save_baseline is not None, tuple(set_))
-        out = out or Path("runs") / f"suite-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+        out = out or Path("runs") / f"suite-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
         if out.exists() and any(out.iterdir()):
             raise ValueError(f"output directory {out} exists and is not empty")
 
@@ -212,8 +232,10 @@ def suite(
     try:
         cases = run_suite(jobs, out, workers=workers, fast=fast, timeout_s=timeout, on_done=done)
     except KeyboardInterrupt:
-        errors.print("[bold yellow]stopped:[/] suite interrupted; finished scenarios are in " + str(out) +
-                     ("; no baseline written" if save_baseline else ""), highlight=False)
+        errors.print(
+            "[bold yellow]stopped:[/] suite interrupted; finished scenarios are in " + str(out) + ("; no baseline written" if save_baseline else ""),
+            highlight=False,
+        )
         raise typer.Exit(130) from None
     comparison = None
     if stored is not None or save_baseline is not None:
@@ -234,8 +256,11 @@ def suite(
     console.print(f"{len(cases) - len(failed)} passed, {len(failed)} failed" + (f": {', '.join(failed)}" if failed else ""))
     if save_baseline is not None:
         broken = sum(bool(c.error) for c in cases)
-        console.print(f"wrote baseline {save_baseline}: {len({c.name for c in cases})} scenarios x {len(jobs) // max(len(sources), 1)} seeds"
-                      + (f" ([bold red]{broken} runs failed[/]: their metrics are null)" if broken else ""), highlight=False)
+        console.print(
+            f"wrote baseline {save_baseline}: {len({c.name for c in cases})} scenarios x {len(jobs) // max(len(sources), 1)} seeds"
+            + (f" ([bold red]{broken} runs failed[/]: their metrics are null)" if broken else ""),
+            highlight=False,
+        )
     if comparison is not None:
         from scenarios.report import compare as comparing
 
@@ -301,8 +326,10 @@ def compare_baselines(
     with user_errors():
         a, b = baselines.load(base), baselines.load(new)
         if a.fast != b.fast:
-            raise ValueError(f"{base} ran the {'fast' if a.fast else 'full'} variants and {new} the {'fast' if b.fast else 'full'} ones: "
-                             "their numbers are not comparable")
+            raise ValueError(
+                f"{base} ran the {'fast' if a.fast else 'full'} variants and {new} the {'fast' if b.fast else 'full'} ones: "
+                "their numbers are not comparable"
+            )
         if not set(a.scenarios) & set(b.scenarios):
             raise ValueError(f"{base} and {new} have no scenario in common")
         comparison = compare(a, b, seeds)
@@ -327,8 +354,9 @@ def _interrupt(signum, frame) -> None:
 def sweep(
     scenario: list[str] = typer.Argument(None, help="library names or .toml paths, every point runs on each (default: the whole library)"),
     grid: list[str] = typer.Option([], "--grid", help="key=v1,v2,... (TOML values); repeat for a cartesian grid"),
-    sample: tuple[int, str] = typer.Option((0, ""), "--sample", show_default=False,
-                                           help="N key=lo:hi[:log][,key2=lo:hi...]: N joint uniform (or log-uniform) draws"),
+    sample: tuple[int, str] = typer.Option(
+        (0, ""), "--sample", show_default=False, help="N key=lo:hi[:log][,key2=lo:hi...]: N joint uniform (or log-uniform) draws"
+    ),
     seeds: int = typer.Option(1, min=1, help="repeat every point over this many seeds (the scenario's seed and the next)"),
     set_: list[str] = typer.Option([], "--set", help="fix a field for every run: key=value, repeatable"),
     workers: int = typer.Option(2, min=1, help="runs at once (local: processes; ray: CPUs of a local Ray instance)"),
@@ -344,7 +372,7 @@ def sweep(
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar or per-run lines"),
 ) -> None:
     """Run a parameter sweep: a results table (Parquet and CSV), a run directory per run, plots, the best parameters."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     import scenarios
     from scenarios.batch import sweep as sweeping
@@ -361,29 +389,51 @@ def sweep(
 
             import_ray()
         count, ranges = sample
-        plan = SweepPlan(tuple(scenario or scenarios.available()), tuple(Axis.parse(g) for g in grid),
-                         tuple(Range.parse(r) for r in ranges.split(",") if r.strip()) if ranges else (),
-                         samples=count, seeds=seeds, fixed=tuple(set_), sample_seed=sample_seed)
+        plan = SweepPlan(
+            tuple(scenario or scenarios.available()),
+            tuple(Axis.parse(g) for g in grid),
+            tuple(Range.parse(r) for r in ranges.split(",") if r.strip()) if ranges else (),
+            samples=count,
+            seeds=seeds,
+            fixed=tuple(set_),
+            sample_seed=sample_seed,
+        )
         if count and not ranges:
             raise ValueError(f"--sample {count}: name what to sample, e.g. --sample {count} lidar.range_noise_m=0.01:0.05")
         points = plan.points()
         for option, metric in [("--objective", objective), *(("--plot", m) for m in plot)]:
             if metric:
                 sweeping.check_metric(metric, points, option)
-        out = out or Path("runs") / f"sweep-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+        out = out or Path("runs") / f"sweep-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
         sweeping.check_out_dir(out)
     if not quiet:
-        console.print(f"sweep: {len(points)} runs ({len(plan.combinations())} parameter combinations x "
-                      f"{len(plan.sources)} scenario(s) x {seeds} seed(s)) into {out}", highlight=False)
+        console.print(
+            f"sweep: {len(points)} runs ({len(plan.combinations())} parameter combinations x "
+            f"{len(plan.sources)} scenario(s) x {seeds} seed(s)) into {out}",
+            highlight=False,
+        )
     progress = SweepProgress(console, quiet)
     signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops a sweep as Ctrl-C does: workers stopped, table consistent
     try:
         with progress:
-            result = sweeping.run_sweep(plan, out, workers=workers, backend=backend, address=address, lean=lean,
-                                        retry_failed=retry_failed, points=points, on_start=progress.start, on_row=progress.row)
+            result = sweeping.run_sweep(
+                plan,
+                out,
+                workers=workers,
+                backend=backend,
+                address=address,
+                lean=lean,
+                retry_failed=retry_failed,
+                points=points,
+                on_start=progress.start,
+                on_row=progress.row,
+            )
     except KeyboardInterrupt:
-        errors.print(f"[bold yellow]stopped:[/] sweep interrupted; the finished runs are in {out}/results.parquet; "
-                     "the same command completes it", highlight=False, soft_wrap=True)
+        errors.print(
+            f"[bold yellow]stopped:[/] sweep interrupted; the finished runs are in {out}/results.parquet; the same command completes it",
+            highlight=False,
+            soft_wrap=True,
+        )
         raise typer.Exit(130) from None
     except (ValueError, OSError) as exc:
         errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
@@ -400,11 +450,11 @@ def report(
     quiet: bool = typer.Option(False, "--quiet", help="print only the report's path"),
 ) -> None:
     """Compare estimators and matchers over runs: report.md and a self-contained report.html, ranked per scenario."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     from scenarios.report import compare
 
-    out = out or Path("runs") / f"report-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+    out = out or Path("runs") / f"report-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
     with user_errors():
         if out.exists() and any(out.iterdir()):
             raise ValueError(f"output directory {out} exists and is not empty")
@@ -429,8 +479,17 @@ def export(
 
     from scenarios import export as exporting
 
-    bar = Progress(TextColumn(f"[bold]export {format_}[/]"), BarColumn(), MofNCompleteColumn(), TextColumn("scans"),
-                   TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=console, disable=quiet)
+    bar = Progress(
+        TextColumn(f"[bold]export {format_}[/]"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("scans"),
+        TimeElapsedColumn(),
+        TextColumn("eta"),
+        TimeRemainingColumn(),
+        console=console,
+        disable=quiet,
+    )
     task = bar.add_task("export", total=None)
 
     def progress(done: int, total: int) -> None:
@@ -450,8 +509,11 @@ def export(
         errors.print("[bold yellow]stopped:[/] export interrupted; nothing written", highlight=False)
         raise typer.Exit(130) from None
     counts = ", ".join(f"{v:,} {k}" for k, v in result.counts.items())
-    console.print(f"wrote {result.out}: {result.scans} scans{', ' + counts if counts else ''} in {result.seconds:.1f} s "
-                  f"({result.scans / max(result.seconds, 1e-9):.0f} scans/s)", highlight=False)
+    console.print(
+        f"wrote {result.out}: {result.scans} scans{', ' + counts if counts else ''} in {result.seconds:.1f} s "
+        f"({result.scans / max(result.seconds, 1e-9):.0f} scans/s)",
+        highlight=False,
+    )
 
 
 @app.command()
@@ -477,8 +539,16 @@ def replay(
         scenarios_spec = load_scenario(scenario)
     try:
         with user_errors(), RunProgress(recording.name, console, quiet) as progress:
-            result = replay_recording(recording, scenarios_spec, out, lidar_topic=lidar_topic, gps_topic=gps_topic, workers=workers,
-                                      report=not no_report, progress=progress.update)
+            result = replay_recording(
+                recording,
+                scenarios_spec,
+                out,
+                lidar_topic=lidar_topic,
+                gps_topic=gps_topic,
+                workers=workers,
+                report=not no_report,
+                progress=progress.update,
+            )
     except RunInterrupted as exc:
         errors.print(f"[bold yellow]stopped:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None

@@ -39,14 +39,50 @@ class BoatShape(BaseModel):
 
 BOATS: dict[str, tuple[BoatShape, Material]] = {
     # a 5.5 m centre-console runabout, the kind a field team drives a chase boat in
-    "runabout": (BoatShape(length_m=5.5, beam_m=2.2, freeboard_m=0.8, draft_m=0.4, bow_fraction=0.35,
-                           cabin_length_m=1.0, cabin_width_m=1.0, cabin_height_m=1.1, cabin_x_m=0.2), GELCOAT),
+    "runabout": (
+        BoatShape(
+            length_m=5.5,
+            beam_m=2.2,
+            freeboard_m=0.8,
+            draft_m=0.4,
+            bow_fraction=0.35,
+            cabin_length_m=1.0,
+            cabin_width_m=1.0,
+            cabin_height_m=1.1,
+            cabin_x_m=0.2,
+        ),
+        GELCOAT,
+    ),
     # a 10 m cabin cruiser
-    "cruiser": (BoatShape(length_m=10.0, beam_m=3.4, freeboard_m=1.2, draft_m=0.8, bow_fraction=0.3,
-                          cabin_length_m=4.5, cabin_width_m=2.8, cabin_height_m=1.7, cabin_x_m=-0.5), GELCOAT),
+    "cruiser": (
+        BoatShape(
+            length_m=10.0,
+            beam_m=3.4,
+            freeboard_m=1.2,
+            draft_m=0.8,
+            bow_fraction=0.3,
+            cabin_length_m=4.5,
+            cabin_width_m=2.8,
+            cabin_height_m=1.7,
+            cabin_x_m=-0.5,
+        ),
+        GELCOAT,
+    ),
     # a 30 m steel work barge with a wheelhouse aft, its top 7.5 m above the water
-    "barge": (BoatShape(length_m=30.0, beam_m=9.0, freeboard_m=1.5, draft_m=1.5, bow_fraction=0.08,
-                        cabin_length_m=4.0, cabin_width_m=6.0, cabin_height_m=6.0, cabin_x_m=-12.0), STEEL),
+    "barge": (
+        BoatShape(
+            length_m=30.0,
+            beam_m=9.0,
+            freeboard_m=1.5,
+            draft_m=1.5,
+            bow_fraction=0.08,
+            cabin_length_m=4.0,
+            cabin_width_m=6.0,
+            cabin_height_m=6.0,
+            cabin_x_m=-12.0,
+        ),
+        STEEL,
+    ),
 }
 """Boat kinds by name: shape and hull material."""
 

@@ -43,8 +43,9 @@ class HullClearance:
         self._part_of_geometry: dict[int, int] = {}
         for i in solid:
             mesh = world.parts[i].mesh
-            gid = self.scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
-                                           o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)))
+            gid = self.scene.add_triangles(
+                o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)), o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32))
+            )
             self._part_of_geometry[gid] = i
         self._empty = not solid
         self.samples = np.asarray(trimesh.sample.sample_surface_even(hull, HULL_SAMPLES, seed=0)[0], dtype=float)

@@ -13,7 +13,7 @@ positions are refused more than `VALIDITY` away from it, as a receiver refuses a
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
 
@@ -29,7 +29,7 @@ MEAN_MOTION = 2.0 * (OMEGA_EARTH - NODE_RATE)
 RADIUS = (MU_EARTH / MEAN_MOTION**2) ** (1.0 / 3.0)
 """Orbit radius from Kepler's third law for MEAN_MOTION, ~26,561 km."""
 
-ALMANAC_EPOCH = datetime(2024, 6, 1, tzinfo=timezone.utc)
+ALMANAC_EPOCH = datetime(2024, 6, 1, tzinfo=UTC)
 """Time of applicability of the nominal almanac."""
 VALIDITY = timedelta(days=180)
 """How far from ALMANAC_EPOCH positions are served; a real almanac is good for months."""
@@ -38,17 +38,38 @@ VALIDITY = timedelta(days=180)
 _PLANE_NODE_DEG = {"A": 357.734, "B": 57.734, "C": 117.734, "D": 177.734, "E": 237.734, "F": 297.734}
 # (slot, plane, argument of latitude at the epoch in deg); PRNs are assigned in this order.
 _SLOTS = (
-    ("A1", "A", 268.126), ("A2", "A", 161.786), ("A3", "A", 11.676), ("A4", "A", 41.806),
-    ("B1F", "B", 94.916), ("B1A", "B", 66.356), ("B2", "B", 173.336), ("B3", "B", 309.976),
+    ("A1", "A", 268.126),
+    ("A2", "A", 161.786),
+    ("A3", "A", 11.676),
+    ("A4", "A", 41.806),
+    ("B1F", "B", 94.916),
+    ("B1A", "B", 66.356),
+    ("B2", "B", 173.336),
+    ("B3", "B", 309.976),
     ("B4", "B", 204.376),
-    ("C1", "C", 111.876), ("C2", "C", 11.796), ("C3", "C", 339.666), ("C4", "C", 241.556),
-    ("D1", "D", 135.226), ("D2F", "D", 282.676), ("D2A", "D", 257.976), ("D3", "D", 35.156),
+    ("C1", "C", 111.876),
+    ("C2", "C", 11.796),
+    ("C3", "C", 339.666),
+    ("C4", "C", 241.556),
+    ("D1", "D", 135.226),
+    ("D2F", "D", 282.676),
+    ("D2A", "D", 257.976),
+    ("D3", "D", 35.156),
     ("D4", "D", 167.356),
-    ("E1", "E", 197.046), ("E2", "E", 302.596), ("E3", "E", 66.066), ("E4", "E", 333.686),
-    ("F1", "F", 238.886), ("F2F", "F", 0.456), ("F2A", "F", 334.016), ("F3", "F", 105.206),
+    ("E1", "E", 197.046),
+    ("E2", "E", 302.596),
+    ("E3", "E", 66.066),
+    ("E4", "E", 333.686),
+    ("F1", "F", 238.886),
+    ("F2F", "F", 0.456),
+    ("F2A", "F", 334.016),
+    ("F3", "F", 105.206),
     ("F4", "F", 135.346),
     # spares, mid-gap in the four planes with the largest gaps
-    ("A5", "A", 101.796), ("B5", "B", 8.166), ("C5", "C", 176.716), ("E5", "E", 131.556),
+    ("A5", "A", 101.796),
+    ("B5", "B", 8.166),
+    ("C5", "C", 176.716),
+    ("E5", "E", 131.556),
 )
 
 
@@ -62,7 +83,7 @@ class Constellation:
     slot: tuple[str, ...]
 
     @classmethod
-    def nominal(cls) -> "Constellation":
+    def nominal(cls) -> Constellation:
         """The 31-satellite nominal almanac (PRN 1..31 in slot-table order)."""
         return cls(
             prn=np.arange(1, len(_SLOTS) + 1),
@@ -81,19 +102,14 @@ class Constellation:
             raise ValueError(f"gnss: UTC time {utc.isoformat()} has no time zone (use UTC)")
         dt = utc - ALMANAC_EPOCH
         if abs(dt) > VALIDITY:
-            raise ValueError(
-                f"gnss: UTC time {utc.isoformat()} is outside the almanac's validity "
-                f"({ALMANAC_EPOCH.date()} +/- {VALIDITY.days} days)"
-            )
+            raise ValueError(f"gnss: UTC time {utc.isoformat()} is outside the almanac's validity ({ALMANAC_EPOCH.date()} +/- {VALIDITY.days} days)")
         return dt.total_seconds()
 
     def ecef(self, seconds_since_epoch: float) -> np.ndarray:
         """(N, 3) ECEF positions in metres at `seconds_since_epoch` after ALMANAC_EPOCH."""
         dt = float(seconds_since_epoch)
         if not abs(dt) <= VALIDITY.total_seconds():
-            raise ValueError(
-                f"gnss: time {dt:.0f} s from the almanac epoch is outside its validity (+/- {VALIDITY.days} days)"
-            )
+            raise ValueError(f"gnss: time {dt:.0f} s from the almanac epoch is outside its validity (+/- {VALIDITY.days} days)")
         u = self.arg_lat0 + MEAN_MOTION * dt
         node = self.node0 + (NODE_RATE - OMEGA_EARTH) * dt
         cu, su = np.cos(u), np.sin(u)

@@ -29,8 +29,14 @@ class DrivenTrajectory(VesselPoses):
     mount, hull, sea state and the wave seed as for sim.Trajectory; `dynamics` the WAM-V model.
     """
 
-    def __init__(self, config: TrajectoryConfig, dynamics: WamvDynamics, start: tuple[float, float, float, float],
-                 t0: float = 0.0, current_enu: tuple[float, float] = (0.0, 0.0)):
+    def __init__(
+        self,
+        config: TrajectoryConfig,
+        dynamics: WamvDynamics,
+        start: tuple[float, float, float, float],
+        t0: float = 0.0,
+        current_enu: tuple[float, float] = (0.0, 0.0),
+    ):
         self.config = config
         self.model = Manoeuvring(dynamics, current_enu)
         rng = stream(config.seed, "sim.trajectory")
@@ -78,8 +84,7 @@ class DrivenTrajectory(VesselPoses):
         if not np.isfinite(ts).all():
             raise ValueError("driven trajectory: time is NaN or infinite")
         if ts.min() < self._t[0] - 1e-9 or ts.max() > self._t[-1] + 1e-9:
-            raise ValueError(f"driven trajectory: time {ts.min():.3f}..{ts.max():.3f} s outside the driven "
-                             f"{self._t[0]:.3f}..{self._t[-1]:.3f} s")
+            raise ValueError(f"driven trajectory: time {ts.min():.3f}..{ts.max():.3f} s outside the driven {self._t[0]:.3f}..{self._t[-1]:.3f} s")
         xy = np.stack([np.interp(ts, self._t, self._state[:, k]) for k in (0, 1)], axis=-1)
         return wave_poses(ts, xy, np.interp(ts, self._t, self._state[:, 2]), self.waves)
 

@@ -33,9 +33,7 @@ def ecef_to_geodetic(x: float, y: float, z: float) -> tuple[float, float, float]
     k = s + 1.0 + 1.0 / s
     pp = f / (3.0 * k * k * g * g)
     q = math.sqrt(1.0 + 2.0 * e2 * e2 * pp)
-    r0 = -(pp * e2 * p) / (1.0 + q) + math.sqrt(
-        0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * p2
-    )
+    r0 = -(pp * e2 * p) / (1.0 + q) + math.sqrt(0.5 * a * a * (1.0 + 1.0 / q) - pp * (1.0 - e2) * z * z / (q * (1.0 + q)) - 0.5 * pp * p2)
     u2 = (p - e2 * r0) ** 2
     big_u = math.sqrt(u2 + z * z)
     big_v = math.sqrt(u2 + (1.0 - e2) * z * z)
@@ -52,7 +50,7 @@ class LocalFrame:
     ecef_to_enu: np.ndarray
 
     @classmethod
-    def at(cls, lat_deg: float, lon_deg: float, alt_m: float) -> "LocalFrame":
+    def at(cls, lat_deg: float, lon_deg: float, alt_m: float) -> LocalFrame:
         origin = np.array(pymap3d.geodetic2ecef(lat_deg, lon_deg, alt_m))
         rotation = np.array([pymap3d.ecef2enuv(*axis, lat_deg, lon_deg) for axis in np.eye(3)]).T
         return cls(origin, rotation)

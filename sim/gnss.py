@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from typing import Literal
 
 import numpy as np
@@ -30,7 +30,7 @@ from sim.scene import split
 from sim.traffic import Traffic
 from sim.visibility import trace
 
-DEFAULT_EPOCH = datetime(2024, 6, 15, 14, 0, 0, tzinfo=timezone.utc)
+DEFAULT_EPOCH = datetime(2024, 6, 15, 14, 0, 0, tzinfo=UTC)
 """Default scenario start: 10:00 local time in Boston on a June day."""
 
 
@@ -43,7 +43,7 @@ class OutageWindow(BaseModel):
     end_s: float = Field(description="end of the window, scenario time, s (exclusive; after start_s)")
 
     @model_validator(mode="after")
-    def _ordered(self) -> "OutageWindow":
+    def _ordered(self) -> OutageWindow:
         if not self.end_s > self.start_s:
             raise ValueError(f"end_s ({self.end_s}) must be after start_s ({self.start_s})")
         return self
@@ -67,18 +67,18 @@ class MultipathConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     search_radius_m: float = Field(
-        200.0, gt=0.0, le=1000.0,
-        description="Only facades within this distance of the antenna reflect, m (bounds the cost; 200 m reaches "
-        "the buildings across a wide river).",
+        200.0,
+        gt=0.0,
+        le=1000.0,
+        description="Only facades within this distance of the antenna reflect, m (bounds the cost; 200 m reaches the buildings across a wide river).",
     )
     reflection_amplitude: float = Field(
-        0.4, gt=0.0, lt=1.0,
-        description="Amplitude of a facade reflection relative to the direct signal (0.4 = -8 dB: reflection and "
-        "RHCP antenna losses).",
+        0.4,
+        gt=0.0,
+        lt=1.0,
+        description="Amplitude of a facade reflection relative to the direct signal (0.4 = -8 dB: reflection and RHCP antenna losses).",
     )
-    correlator_spacing_chips: float = Field(
-        0.2, gt=0.0, le=1.0, description="Early-late correlator spacing of the code tracking loop, C/A chips."
-    )
+    correlator_spacing_chips: float = Field(0.2, gt=0.0, le=1.0, description="Early-late correlator spacing of the code tracking loop, C/A chips.")
 
 
 class GnssConfig(BaseModel):
@@ -89,16 +89,14 @@ class GnssConfig(BaseModel):
     rate_hz: float = Field(5.0, ge=1.0, le=10.0, description="Output rate, Hz (1-10).")
     epoch_utc: datetime = Field(DEFAULT_EPOCH, description="UTC at scenario time 0 (satellite geometry).")
     elevation_mask_deg: float = Field(12.0, ge=0.0, lt=90.0, description="Satellites below this are not used, deg.")
-    pdop_mask: float = Field(
-        25.0, gt=1.0, description="Raw solutions with a larger PDOP are discarded (u-blox default 25)."
-    )
-    antenna_offset_m: tuple[float, float, float] = Field(
-        (0.0, 0.0, 1.3), description="Antenna phase centre on base_link (x fwd, y left, z up), m."
-    )
+    pdop_mask: float = Field(25.0, gt=1.0, description="Raw solutions with a larger PDOP are discarded (u-blox default 25).")
+    antenna_offset_m: tuple[float, float, float] = Field((0.0, 0.0, 1.3), description="Antenna phase centre on base_link (x fwd, y left, z up), m.")
     noise: PseudorangeNoise = Field(default_factory=PseudorangeNoise, description="Pseudorange error model.")
     multipath: MultipathConfig = Field(default_factory=MultipathConfig, description="Facade reflections.")
     foliage_loss_db_per_m: float = Field(
-        1.3, ge=0.0, le=10.0,
+        1.3,
+        ge=0.0,
+        le=10.0,
         description="C/N0 lost per metre of tree crown a direct signal crosses, dB/m (crowns attenuate, they do not block). "
         "Goldhirsh & Vogel, Handbook of Propagation Effects for Vehicular and Personal Mobile Satellite Systems "
         "(NASA RP-1274, ch. 2), single roadside trees in full foliage at L-band: ~1-2 dB/m; ITU-R P.833 gives "
@@ -108,17 +106,15 @@ class GnssConfig(BaseModel):
         "kalman", description="'kalman': the receiver's CV filter output; 'raw': single-epoch WLS solutions."
     )
     filter: FilterConfig = Field(default_factory=FilterConfig, description="Receiver navigation filter.")
-    coast_limit_s: float = Field(
-        10.0, ge=0.0, description="Dead reckoning (quality 6) this long after the last raw fix, then quality 0, s."
-    )
+    coast_limit_s: float = Field(10.0, ge=0.0, description="Dead reckoning (quality 6) this long after the last raw fix, then quality 0, s.")
     forced_outages: tuple[OutageWindow, ...] = Field((), description="Forced outage intervals (off by default).")
     forced_biases: tuple[BiasWindow, ...] = Field((), description="Forced position/range biases (off by default).")
 
     @field_validator("epoch_utc")
     @classmethod
     def _valid_epoch(cls, value: datetime) -> datetime:
-        value = value if value.tzinfo is not None else value.replace(tzinfo=timezone.utc)
-        value = value.astimezone(timezone.utc)
+        value = value if value.tzinfo is not None else value.replace(tzinfo=UTC)
+        value = value.astimezone(UTC)
         Constellation.seconds_since_epoch(value)
         return value
 
@@ -249,7 +245,9 @@ class GnssReceiver:
         los_mp = los & np.isfinite(extra)
         if los_mp.any():
             bias[los_mp] = code_multipath_error(
-                extra[los_mp], mp.reflection_amplitude, mp.correlator_spacing_chips,
+                extra[los_mp],
+                mp.reflection_amplitude,
+                mp.correlator_spacing_chips,
                 2.0 * np.pi * extra[los_mp] / L1_WAVELENGTH_M,
             )
         bias += self._forced_bias(t, view, dirs)

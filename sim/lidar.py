@@ -18,10 +18,38 @@ from worlds.world import World
 # downward laser fires first, then the lower and upper banks interleave.
 HDL32E_ELEVATION_DEG = np.array(
     [
-        -30.67, -9.33, -29.33, -8.00, -28.00, -6.67, -26.67, -5.33,
-        -25.33, -4.00, -24.00, -2.67, -22.67, -1.33, -21.33, 0.00,
-        -20.00, 1.33, -18.67, 2.67, -17.33, 4.00, -16.00, 5.33,
-        -14.67, 6.67, -13.33, 8.00, -12.00, 9.33, -10.67, 10.67,
+        -30.67,
+        -9.33,
+        -29.33,
+        -8.00,
+        -28.00,
+        -6.67,
+        -26.67,
+        -5.33,
+        -25.33,
+        -4.00,
+        -24.00,
+        -2.67,
+        -22.67,
+        -1.33,
+        -21.33,
+        0.00,
+        -20.00,
+        1.33,
+        -18.67,
+        2.67,
+        -17.33,
+        4.00,
+        -16.00,
+        5.33,
+        -14.67,
+        6.67,
+        -13.33,
+        8.00,
+        -12.00,
+        9.33,
+        -10.67,
+        10.67,
     ]
 )
 LASER_INTERVAL_S = 1.152e-6  # time between two consecutive lasers of a firing sequence
@@ -41,16 +69,10 @@ class HDL32EConfig(BaseModel):
     range_resolution_m: float = Field(0.002, ge=0, description="range quantum of the data packets; 0 = none")
     min_range_m: float = Field(1.0, gt=0, description="returns closer than this are not reported")
     max_range_m: float = Field(100.0, gt=0, description="returns beyond this are dropped")
-    range_10pct_m: float = Field(
-        70.0, gt=0, description="range at which a 10%-reflective target at normal incidence is detected 90% of the time"
-    )
+    range_10pct_m: float = Field(70.0, gt=0, description="range at which a 10%-reflective target at normal incidence is detected 90% of the time")
     dropout_rate: float = Field(0.01, ge=0, le=1, description="share of otherwise valid returns randomly lost")
-    water_return_prob: float = Field(
-        0.05, ge=0, le=1, description="probability of a water return at normal incidence (specular, absorbing)"
-    )
-    water_return_exponent: float = Field(
-        6.0, ge=0, description="water return probability falls as cos(incidence)**exponent"
-    )
+    water_return_prob: float = Field(0.05, ge=0, le=1, description="probability of a water return at normal incidence (specular, absorbing)")
+    water_return_exponent: float = Field(6.0, ge=0, description="water return probability falls as cos(incidence)**exponent")
     attenuation_per_m: float = Field(5e-4, ge=0, description="one-way atmospheric extinction on intensity")
     start_azimuth_deg: float = Field(180.0, description="azimuth (from lidar x, CCW) where a revolution starts")
     self_occlusion: bool = Field(True, description="rays that hit the vessel's own hull and mast return nothing")
@@ -61,7 +83,7 @@ class HDL32EConfig(BaseModel):
     seed: int = Field(0, description="seed of the noise, drop-out and blinding draws")
 
     @model_validator(mode="after")
-    def _ranges_ordered(self) -> "HDL32EConfig":
+    def _ranges_ordered(self) -> HDL32EConfig:
         if self.min_range_m >= self.max_range_m:
             raise ValueError(f"min_range_m ({self.min_range_m}) must be below max_range_m ({self.max_range_m})")
         return self
@@ -192,8 +214,9 @@ class HDL32E:
         return self._occlusion[key]
 
 
-def _surfaces(world: World, traffic: Traffic, primitive: np.ndarray, movers_hit: tuple[np.ndarray, np.ndarray] | None,
-              ray_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _surfaces(
+    world: World, traffic: Traffic, primitive: np.ndarray, movers_hit: tuple[np.ndarray, np.ndarray] | None, ray_index: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Label, reflectivity and water flag of each returned ray (ray_index, sorted) from the world face it hit, then,
     for the rays a mover hit first (movers_hit: sorted rays, mover index), mover i as label len(world.parts) + i."""
     part = world.face_part[primitive[ray_index]]

@@ -55,14 +55,27 @@ class MoverRays:
         self.laser_el = elevation
         self.el_lo, self.el_hi = float(elevation.min()), float(elevation.max())
         # direction of the middle of each (interval, laser) cell; a ray lies within az_half of it
-        self.cell_dir = np.stack([np.cos(elevation) * np.cos(self.az_mid)[:, None],
-                                  np.cos(elevation) * np.sin(self.az_mid)[:, None],
-                                  np.broadcast_to(np.sin(elevation), (len(self.az_mid), self.lasers))], axis=-1)
+        self.cell_dir = np.stack(
+            [
+                np.cos(elevation) * np.cos(self.az_mid)[:, None],
+                np.cos(elevation) * np.sin(self.az_mid)[:, None],
+                np.broadcast_to(np.sin(elevation), (len(self.az_mid), self.lasers)),
+            ],
+            axis=-1,
+        )
         mover_knot, self.mover_index, self.mover_frac = _knots(n_firings, MOVER_KNOT_FIRINGS)
         self.mover_knot_t = mover_knot * firing_s
 
-    def cast(self, traffic: Traffic, t0: float, lidar_knots: np.ndarray, firing_poses: np.ndarray,
-             t_hit: np.ndarray, cos_inc: np.ndarray, max_range_m: float) -> tuple[np.ndarray, np.ndarray]:
+    def cast(
+        self,
+        traffic: Traffic,
+        t0: float,
+        lidar_knots: np.ndarray,
+        firing_poses: np.ndarray,
+        t_hit: np.ndarray,
+        cos_inc: np.ndarray,
+        max_range_m: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Update t_hit and cos_inc (per ray, in place) where a mover is nearer; the rays a mover hit first (sorted)
         and that mover's index.
 
@@ -79,8 +92,9 @@ class MoverRays:
         rel = self._at_firings(world_centre, self.knot_firing) - lidar_knots[:, None, :3, 3]  # (K + 1, M, 3) world
         p = np.einsum("kji,kmj->mki", lidar_knots[:, :3, :3], rel)  # sphere centres in the lidar frame
         tilt = np.arccos(np.clip(lidar_knots[:, 2, 2], -1.0, 1.0))
-        rays, mover, grid_mover, grid_firing, at = self._candidates(p, radius, rel.transpose(1, 0, 2), half_height,
-                                                                    np.maximum(tilt[:-1], tilt[1:]), t_hit, max_range_m)
+        rays, mover, grid_mover, grid_firing, at = self._candidates(
+            p, radius, rel.transpose(1, 0, 2), half_height, np.maximum(tilt[:-1], tilt[1:]), t_hit, max_range_m
+        )
         if not len(rays):
             return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.int16)
         inv = rigid_inverse(knots.reshape(-1, 4, 4)).reshape(knots.shape)
@@ -118,8 +132,9 @@ class MoverRays:
         frac = self.mover_frac[firing].reshape(-1, *([1] * (values.ndim - 1)))
         return values[i] + frac * (values[i + 1] - values[i])
 
-    def _candidates(self, p: np.ndarray, radius: np.ndarray, rel: np.ndarray, half_height: np.ndarray, tilt: np.ndarray,
-                    t_hit: np.ndarray, max_range_m: float):
+    def _candidates(
+        self, p: np.ndarray, radius: np.ndarray, rel: np.ndarray, half_height: np.ndarray, tilt: np.ndarray, t_hit: np.ndarray, max_range_m: float
+    ):
         """Rays that may meet the movers before their current hit: (rays, their mover, the (mover, firing) grid of the
         candidate intervals as grid_mover and grid_firing, each ray's row in that grid).
 

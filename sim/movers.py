@@ -78,8 +78,7 @@ class Crossing:
     hi: float
 
     @classmethod
-    def across(cls, route: Route, station_m: float, time_s: float, speed_mps: float, angle_deg: float,
-               margin_m: float) -> Crossing:
+    def across(cls, route: Route, station_m: float, time_s: float, speed_mps: float, angle_deg: float, margin_m: float) -> Crossing:
         """Crossing the route's centreline at `station_m`, heading `angle_deg` from the route's direction (90: from
         the right bank to the left), landings `margin_m` inside the banks (the route's bank distances there)."""
         xy, heading = route.at(station_m)
@@ -90,8 +89,9 @@ class Crossing:
             left, right = right, left
         hi, lo = left / across - margin_m, -(right / across - margin_m)
         if lo >= hi:
-            raise ValueError(f"crossing at station {station_m} m: the river ({left + right:.0f} m) is narrower than the "
-                             f"landing margins ({2 * margin_m:.0f} m)")
+            raise ValueError(
+                f"crossing at station {station_m} m: the river ({left + right:.0f} m) is narrower than the landing margins ({2 * margin_m:.0f} m)"
+            )
         return cls(np.asarray(xy, dtype=float), np.array([np.cos(yaw), np.sin(yaw)]), time_s, speed_mps, lo, hi)
 
     def poses(self, ts: np.ndarray) -> np.ndarray:
@@ -117,8 +117,7 @@ class Chase:
         target = self.vessel.poses(np.maximum(np.asarray(ts, dtype=float) - self.lag_s, self.t_start))
         yaw = np.arctan2(target[:, 1, 0], target[:, 0, 0])
         c, s = np.cos(yaw), np.sin(yaw)
-        xy = target[:, :2, 3] + np.stack([-self.distance_m * c - self.lateral_m * s,
-                                          -self.distance_m * s + self.lateral_m * c], axis=-1)
+        xy = target[:, :2, 3] + np.stack([-self.distance_m * c - self.lateral_m * s, -self.distance_m * s + self.lateral_m * c], axis=-1)
         return level_poses(xy, yaw)
 
 
@@ -146,8 +145,9 @@ class Mover:
     def scene(self) -> o3d.t.geometry.RaycastingScene:
         """Open3D scene of the body-frame mesh, built once: rays are brought into the body frame instead."""
         scene = o3d.t.geometry.RaycastingScene()
-        scene.add_triangles(o3d.core.Tensor(np.asarray(self.mesh.vertices, dtype=np.float32)),
-                            o3d.core.Tensor(np.asarray(self.mesh.faces, dtype=np.uint32)))
+        scene.add_triangles(
+            o3d.core.Tensor(np.asarray(self.mesh.vertices, dtype=np.float32)), o3d.core.Tensor(np.asarray(self.mesh.faces, dtype=np.uint32))
+        )
         return scene
 
     def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -164,8 +164,9 @@ class Mover:
         if radius_m not in self._facades:
             normals = np.asarray(self.mesh.face_normals)
             keep = (np.abs(normals[:, 2]) < VERTICAL_NZ) & (np.asarray(self.mesh.area_faces) >= MIN_FACET_AREA_M2)
-            self._facades[radius_m] = FacadeIndex(np.asarray(self.mesh.triangles)[keep], normals[keep],
-                                                  np.zeros(int(keep.sum()), dtype=bool), radius_m)
+            self._facades[radius_m] = FacadeIndex(
+                np.asarray(self.mesh.triangles)[keep], normals[keep], np.zeros(int(keep.sum()), dtype=bool), radius_m
+            )
         rot, at = pose[:3, :3], pose[:3, 3]
         body = self._facades[radius_m].reflections(rot.T @ (antenna - at), directions @ rot)
         return Reflections(body.sat, body.point @ rot.T + at, body.normal @ rot.T, body.extra_m)

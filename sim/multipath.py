@@ -44,8 +44,12 @@ class Reflections:
 
     def joined(self, other: Reflections) -> Reflections:
         """These candidates followed by `other`'s."""
-        return Reflections(np.concatenate([self.sat, other.sat]), np.concatenate([self.point, other.point]),
-                           np.concatenate([self.normal, other.normal]), np.concatenate([self.extra_m, other.extra_m]))
+        return Reflections(
+            np.concatenate([self.sat, other.sat]),
+            np.concatenate([self.point, other.point]),
+            np.concatenate([self.normal, other.normal]),
+            np.concatenate([self.extra_m, other.extra_m]),
+        )
 
 
 class FacadeIndex:
@@ -55,8 +59,7 @@ class FacadeIndex:
     plus half the cell diagonal of the cell centre, so one dictionary look-up bounds the search.
     """
 
-    def __init__(self, vertices: np.ndarray, normals: np.ndarray, two_sided: np.ndarray, radius_m: float,
-                 cell_m: float | None = None):
+    def __init__(self, vertices: np.ndarray, normals: np.ndarray, two_sided: np.ndarray, radius_m: float, cell_m: float | None = None):
         self.radius_m = float(radius_m)
         self.two_sided = np.asarray(two_sided, dtype=bool)
         self.cell_m = float(cell_m if cell_m is not None else max(self.radius_m / 4.0, 5.0))
@@ -76,12 +79,11 @@ class FacadeIndex:
         self.to_u = np.stack([e2b, -e2t], axis=1) / det[:, None]
         self.to_v = np.stack([-e1b, e1t], axis=1) / det[:, None]
         # Everything a query needs per face in one row, so a query gathers once.
-        self._rows = np.hstack([self.origin, self.normals, self.tangent, self.bitangent, self.to_u, self.to_v,
-                                self.two_sided[:, None]])
+        self._rows = np.hstack([self.origin, self.normals, self.tangent, self.bitangent, self.to_u, self.to_v, self.two_sided[:, None]])
         self._cells = self._build_cells()
 
     @classmethod
-    def from_world(cls, world, radius_m: float) -> "FacadeIndex":
+    def from_world(cls, world, radius_m: float) -> FacadeIndex:
         """Index the facades of a World (parts with gnss_reflective material, vertical faces).
 
         Faces of a closed (watertight) part reflect only on their outer side; faces of open sheets

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from datetime import date, datetime, timedelta, timezone
+from datetime import UTC, date, datetime, timedelta
 from functools import reduce
 from typing import Protocol
 
@@ -122,10 +122,7 @@ def rmc(fix: Fix) -> str:
     speed = _num(fix.speed_mps / KNOT_MPS if valid else math.nan, ".3f")
     course = _num(fix.course_deg if valid else math.nan, ".2f")
     mode = {0: "N", 1: "A", 6: "E"}.get(fix.quality, "A")
-    body = (
-        f"{TALKER}RMC,{_time(when)},{'A' if valid else 'V'},{lat},{ns},{lon},{ew},{speed},{course},"
-        f"{when:%d%m%y},,,{mode}"
-    )
+    body = f"{TALKER}RMC,{_time(when)},{'A' if valid else 'V'},{lat},{ns},{lon},{ew},{speed},{course},{when:%d%m%y},,,{mode}"
     return sentence(body)
 
 
@@ -144,11 +141,8 @@ def gsv(fix: Fix) -> list[str]:
     total = max(1, math.ceil(len(sats) / SATS_PER_GSV))
     out = []
     for index in range(total):
-        chunk = sats[index * SATS_PER_GSV:(index + 1) * SATS_PER_GSV]
-        fields = [
-            f"{s.prn:02d},{round(s.el_deg):02d},{round(s.az_deg) % 360:03d},{'' if s.snr <= 0 else f'{round(s.snr):02d}'}"
-            for s in chunk
-        ]
+        chunk = sats[index * SATS_PER_GSV : (index + 1) * SATS_PER_GSV]
+        fields = [f"{s.prn:02d},{round(s.el_deg):02d},{round(s.az_deg) % 360:03d},{'' if s.snr <= 0 else f'{round(s.snr):02d}'}" for s in chunk]
         out.append(sentence(",".join([f"{TALKER}GSV,{total},{index + 1},{len(sats):02d}", *fields])))
     return out
 
@@ -159,6 +153,7 @@ def fix_sentences(fix: Fix) -> list[str]:
 
 
 # ---------------------------------------------------------------------------------------- parsing
+
 
 def parse(line: str) -> dict:
     """Decode one sentence into a dict ('type' plus typed fields); ValueError on a bad checksum or format."""
@@ -223,7 +218,7 @@ def _rmc(f: list[str]) -> dict:
 def _gsa(f: list[str]) -> dict:
     return {
         "fix_type": int(f[1]),
-        "prns": [int(p) for p in f[2:2 + MAX_GSA_PRNS] if p],
+        "prns": [int(p) for p in f[2 : 2 + MAX_GSA_PRNS] if p],
         "pdop": _float(f[14]),
         "hdop": _float(f[15]),
         "vdop": _float(f[16]),
@@ -233,7 +228,7 @@ def _gsa(f: list[str]) -> dict:
 def _gsv(f: list[str]) -> dict:
     sats = []
     for i in range(3, len(f) - 3, 4):
-        prn, el, az, snr = f[i:i + 4]
+        prn, el, az, snr = f[i : i + 4]
         sats.append((int(prn), int(el), int(az), int(snr) if snr else None))
     return {"total": int(f[0]), "index": int(f[1]), "in_view": int(f[2]), "sats": sats}
 
@@ -258,6 +253,6 @@ def parse_epoch(lines: list[str]) -> dict:
         else:
             out.update(msg)
     if "date" in out and "seconds_of_day" in out:
-        midnight = datetime(out["date"].year, out["date"].month, out["date"].day, tzinfo=timezone.utc)
+        midnight = datetime(out["date"].year, out["date"].month, out["date"].day, tzinfo=UTC)
         out["utc"] = midnight + timedelta(seconds=out["seconds_of_day"])
     return out

@@ -25,12 +25,8 @@ class PseudorangeNoise(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     white_zenith_m: float = Field(0.6, ge=0.0, description="Zenith sigma of white code noise per epoch, m.")
-    correlated_zenith_m: float = Field(
-        1.5, ge=0.0, description="Zenith sigma of the slowly varying (Gauss-Markov) error per satellite, m."
-    )
-    correlation_time_s: float = Field(
-        300.0, gt=0.0, description="Correlation time of the slowly varying error, s."
-    )
+    correlated_zenith_m: float = Field(1.5, ge=0.0, description="Zenith sigma of the slowly varying (Gauss-Markov) error per satellite, m.")
+    correlation_time_s: float = Field(300.0, gt=0.0, description="Correlation time of the slowly varying error, s.")
     cn0_zenith_dbhz: float = Field(48.0, description="Carrier-to-noise density of a direct signal at zenith, dB-Hz.")
     cn0_horizon_dbhz: float = Field(36.0, description="C/N0 of a direct signal at the horizon, dB-Hz (linear in sin(el)).")
     cn0_jitter_db: float = Field(1.0, ge=0.0, description="Sigma of the epoch-to-epoch C/N0 fluctuation, dB.")

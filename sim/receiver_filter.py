@@ -27,7 +27,8 @@ class FilterConfig(BaseModel):
     process_noise_v: float = Field(0.002, gt=0.0, description="Vertical acceleration noise density, m^2/s^3.")
     initial_speed_sigma: float = Field(3.0, gt=0.0, description="Velocity sigma at (re)initialisation, m/s.")
     fix_sigma_m: float = Field(
-        2.5, gt=0.0,
+        2.5,
+        gt=0.0,
         description="Added in quadrature per axis to a raw fix's formal covariance: the filter's allowance for "
         "errors the geometry does not show (slow range errors), m.",
     )

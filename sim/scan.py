@@ -43,5 +43,5 @@ class Scan:
         return np.stack([self.points["x"], self.points["y"], self.points["z"]], axis=1).astype(np.float64)
 
     @classmethod
-    def empty(cls, stamp: float) -> "Scan":
+    def empty(cls, stamp: float) -> Scan:
         return cls(stamp=stamp, points=np.zeros(0, dtype=POINT_DTYPE))

@@ -96,7 +96,12 @@ class CrossingConfig(_MoverConfig):
     station_m: float = Field(..., ge=0, description="route station where it crosses the centreline, m")
     time_s: float = Field(..., ge=0, description="scenario time at which it crosses the centreline, s")
     speed_mps: float = Field(3.0, gt=0, le=15, description="speed over ground, m/s")
-    angle_deg: float = Field(90.0, ge=-150, le=150, description="heading from the route's direction, deg (90: from the right bank to the left; -90: the other way; |angle| >= 30)")
+    angle_deg: float = Field(
+        90.0,
+        ge=-150,
+        le=150,
+        description="heading from the route's direction, deg (90: from the right bank to the left; -90: the other way; |angle| >= 30)",
+    )
 
     @model_validator(mode="after")
     def _across(self) -> CrossingConfig:

@@ -22,20 +22,14 @@ class TrajectoryConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     speed_mps: float = Field(2.0, gt=0, le=10, description="mean speed over ground")
-    speed_variation: float = Field(
-        0.2, ge=0, lt=1, description="relative amplitude of the slow speed oscillation (0.2: 1.6-2.4 m/s at 2 m/s)"
-    )
+    speed_variation: float = Field(0.2, ge=0, lt=1, description="relative amplitude of the slow speed oscillation (0.2: 1.6-2.4 m/s at 2 m/s)")
     speed_period_s: float = Field(90.0, gt=0, description="period of the speed oscillation")
     sea_state: int = Field(0, ge=0, le=4, description="Douglas sea state; 0 is calm (no wave motion)")
     start_m: float = Field(0.0, ge=0, description="route station where the run starts")
     end_m: float | None = Field(None, gt=0, description="route station where the run ends (default: route end)")
     lateral_offset_m: float = Field(0.0, description="constant offset to the left of the route centreline")
-    mount_xyz: tuple[float, float, float] = Field(
-        (0.0, 0.0, 1.8), description="LiDAR origin on base_link (x fwd, y left, z up from the waterline)"
-    )
-    mount_rpy_deg: tuple[float, float, float] = Field(
-        (0.0, 0.0, 0.0), description="LiDAR roll, pitch, yaw on base_link (0: forward-facing, level)"
-    )
+    mount_xyz: tuple[float, float, float] = Field((0.0, 0.0, 1.8), description="LiDAR origin on base_link (x fwd, y left, z up from the waterline)")
+    mount_rpy_deg: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="LiDAR roll, pitch, yaw on base_link (0: forward-facing, level)")
     hull: HullConfig = Field(default_factory=HullConfig, description="vessel body that occludes the LiDAR")
     seed: int = Field(0, description="seed of the speed-profile phase and the wave components")
 
@@ -90,14 +84,11 @@ class Trajectory(VesselPoses):
         self.end_m = self.route.length if cfg.end_m is None else cfg.end_m
         if not cfg.start_m < self.end_m <= self.route.length + 1e-9:
             raise ValueError(
-                f"trajectory: need start_m < end_m <= route length {self.route.length:.1f} m, "
-                f"got start_m={cfg.start_m}, end_m={self.end_m}"
+                f"trajectory: need start_m < end_m <= route length {self.route.length:.1f} m, got start_m={cfg.start_m}, end_m={self.end_m}"
             )
         rng = stream(cfg.seed, "sim.trajectory")
         self._speed_phase = float(rng.uniform(0.0, 2.0 * np.pi))
-        self.waves = WaveMotion.from_sea_state(
-            cfg.sea_state, rng, beam_m=cfg.hull.beam_m, length_m=cfg.hull.length_m
-        )
+        self.waves = WaveMotion.from_sea_state(cfg.sea_state, rng, beam_m=cfg.hull.beam_m, length_m=cfg.hull.length_m)
         self.duration = float(brentq(lambda t: self.station(t) - self.end_m, 0.0, 10 * self.end_m / cfg.speed_mps))
         self.mount = mount_matrix(cfg)
 
@@ -128,9 +119,7 @@ class Trajectory(VesselPoses):
         if not np.isfinite(ts).all():
             raise ValueError("trajectory: time is NaN or infinite")
         if ts.min() < 0.0 or ts.max() > self.duration + 1.0:
-            raise ValueError(
-                f"trajectory: time {ts.min():.3f}..{ts.max():.3f} s outside the run 0..{self.duration:.1f} s"
-            )
+            raise ValueError(f"trajectory: time {ts.min():.3f}..{ts.max():.3f} s outside the run 0..{self.duration:.1f} s")
 
 
 def mount_matrix(config: TrajectoryConfig) -> np.ndarray:

@@ -26,8 +26,7 @@ def hull_mesh(cfg: HullConfig, mast_top_m: float) -> trimesh.Trimesh:
     """Pontoons, payload tray and the mast up to `mast_top_m`, in base_link (z up from waterline)."""
     y_pontoon = cfg.beam_m / 2 - cfg.pontoon_width_m / 2
     parts = [
-        _box((cfg.length_m, cfg.pontoon_width_m, cfg.pontoon_height_m), (0.0, side * y_pontoon, cfg.pontoon_height_m / 2))
-        for side in (-1.0, 1.0)
+        _box((cfg.length_m, cfg.pontoon_width_m, cfg.pontoon_height_m), (0.0, side * y_pontoon, cfg.pontoon_height_m / 2)) for side in (-1.0, 1.0)
     ]
     tray_bottom = cfg.pontoon_height_m + 0.2
     parts.append(

@@ -36,8 +36,13 @@ class SignalPaths:
     inside_solid: bool
 
 
-def trace(scene: o3d.t.geometry.RaycastingScene, antenna: np.ndarray, directions: np.ndarray,
-          reflections: Reflections, movers: Callable[[np.ndarray], np.ndarray] | None = None) -> SignalPaths:
+def trace(
+    scene: o3d.t.geometry.RaycastingScene,
+    antenna: np.ndarray,
+    directions: np.ndarray,
+    reflections: Reflections,
+    movers: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> SignalPaths:
     """Cast the probes, line-of-sight rays and reflection legs of one epoch in one batch; `movers`, if given,
     maps world rays (N, 6) to the distance to the nearest moving body (inf: none), which blocks them too."""
     m, k = len(directions), len(reflections)
@@ -45,8 +50,8 @@ def trace(scene: o3d.t.geometry.RaycastingScene, antenna: np.ndarray, directions
     rays = np.empty((p + m + 2 * k, 6), dtype=np.float32)
     rays[:p, :3] = antenna
     rays[:p, 3:] = PROBES
-    rays[p:p + m, :3] = antenna + START_OFFSET_M * directions
-    rays[p:p + m, 3:] = directions
+    rays[p : p + m, :3] = antenna + START_OFFSET_M * directions
+    rays[p : p + m, 3:] = directions
     leg_length = np.zeros(0)
     if k:
         start = reflections.point + START_OFFSET_M * reflections.normal
@@ -63,6 +68,6 @@ def trace(scene: o3d.t.geometry.RaycastingScene, antenna: np.ndarray, directions
     if movers is not None:
         t_hit[p:] = np.minimum(t_hit[p:], movers(rays[p:]))
     inside = bool(np.isfinite(t_hit[:p]).all() and ((hits["primitive_normals"].numpy()[:p] * PROBES).sum(1) > 0).all())
-    los = np.isinf(t_hit[p:p + m])
-    clear = np.isinf(t_hit[p + m:p + m + k]) & (t_hit[p + m + k:] >= leg_length - START_OFFSET_M)
+    los = np.isinf(t_hit[p : p + m])
+    clear = np.isinf(t_hit[p + m : p + m + k]) & (t_hit[p + m + k :] >= leg_length - START_OFFSET_M)
     return SignalPaths(los=los, reflection_clear=clear, inside_solid=inside)

@@ -31,7 +31,7 @@ class WaveMotion:
         n_components: int = 24,
         beam_m: float = 2.4,
         length_m: float = 4.9,
-    ) -> "WaveMotion":
+    ) -> WaveMotion:
         """Draw components for a Douglas sea state (0-4, the range an ASV survey runs in).
 
         A catamaran of the given beam and length filters waves shorter than itself: each

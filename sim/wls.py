@@ -63,7 +63,7 @@ def solve(sat_enu: np.ndarray, pseudorange: np.ndarray, sigma: np.ndarray, start
         raise ValueError(f"gnss: position needs >= 4 satellites, got {len(pseudorange)}")
     x = np.array(start, dtype=float)
     w = 1.0 / sigma**2
-    for iteration in range(1, MAX_ITERATIONS + 1):
+    for iteration in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (the count is returned)
         h, rng = design(sat_enu, x[:3])
         hw = h.T * w
         normal_inv = np.linalg.inv(hw @ h)
@@ -72,5 +72,4 @@ def solve(sat_enu: np.ndarray, pseudorange: np.ndarray, sigma: np.ndarray, start
         if step[:3] @ step[:3] < CONVERGED_M * rng.min():  # the clock enters linearly
             break
     # The last step was short: the geometry at its start is the solution's to ~1e-8 rad.
-    return Solution(enu=x[:3], clock_m=float(x[3]), q=np.linalg.inv(h.T @ h), cov=normal_inv[:3, :3],
-                    iterations=iteration)
+    return Solution(enu=x[:3], clock_m=float(x[3]), q=np.linalg.inv(h.T @ h), cov=normal_inv[:3, :3], iterations=iteration)

@@ -132,8 +132,16 @@ def make_fix(spec: StreamSpec, t_grid: np.ndarray, poses: np.ndarray, t: float, 
     true_enu = np.array([antenna[0], antenna[1], 1.3])
     enu = np.r_[antenna + err, 1.3] if quality else np.full(3, np.nan)
     return GnssFix(
-        stamp=t, lat=0.0, lon=0.0, alt=0.0, enu=enu, quality=quality, num_sats=8 if quality else 0,
-        hdop=spec.hdop if quality else float("nan"), vdop=1.5 * spec.hdop, pdop=1.8 * spec.hdop,
+        stamp=t,
+        lat=0.0,
+        lon=0.0,
+        alt=0.0,
+        enu=enu,
+        quality=quality,
+        num_sats=8 if quality else 0,
+        hdop=spec.hdop if quality else float("nan"),
+        vdop=1.5 * spec.hdop,
+        pdop=1.8 * spec.hdop,
         truth=FixTruth(enu=true_enu, error=np.r_[err, 0.0] if quality else np.full(3, np.nan)),
     )
 

@@ -9,8 +9,21 @@ import numpy as np
 import riverbench
 from riverbench.angles import wrap_angle, wrap_deg
 
-SPECIAL = [0.0, -0.0, math.pi, -math.pi, 2 * math.pi, -3 * math.pi, 1e-300, -5e-324, 1e15, -1e15,
-           math.nextafter(math.pi, 0.0), math.nextafter(-math.pi, 0.0), math.nextafter(-math.pi, -4.0)]
+SPECIAL = [
+    0.0,
+    -0.0,
+    math.pi,
+    -math.pi,
+    2 * math.pi,
+    -3 * math.pi,
+    1e-300,
+    -5e-324,
+    1e15,
+    -1e15,
+    math.nextafter(math.pi, 0.0),
+    math.nextafter(-math.pi, 0.0),
+    math.nextafter(-math.pi, -4.0),
+]
 
 
 def _values() -> np.ndarray:

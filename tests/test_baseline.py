@@ -117,19 +117,29 @@ def test_a_saved_baseline_loads_back_equal_and_keeps_a_metrics_seeds_on_one_line
 
 
 def test_flatten_takes_every_number_by_dotted_path_and_skips_provenance_and_expectations():
-    tree = {"provenance": {"numpy": 2}, "expectations": [{"pass": True}], "run": {"scans": 10, "ok": True, "name": "x"},
-            "estimators": {"ekf": {"ape": {"p95": 1.5, "max": float("nan")}}}}
+    tree = {
+        "provenance": {"numpy": 2},
+        "expectations": [{"pass": True}],
+        "run": {"scans": 10, "ok": True, "name": "x"},
+        "estimators": {"ekf": {"ape": {"p95": 1.5, "max": float("nan")}}},
+    }
     assert baselines.flatten(tree) == {"run.scans": 10.0, "run.ok": 1.0, "estimators.ekf.ape.p95": 1.5, "estimators.ekf.ape.max": None}
 
 
-@pytest.mark.parametrize("content, problem", [
-    ("", "not valid JSON"),
-    ('{"format": "riverbench-baseline", "format_version": 1, "scenarios": {', "not valid JSON"),
-    ('{"some": "thing"}', "not a riverbench baseline"),
-    ('{"format": "riverbench-baseline", "format_version": 99}', "format version 99"),
-    ('{"format": "riverbench-baseline", "format_version": 1, "created_utc": "x", "provenance": {}, "fast": true, '
-     '"scenarios": {"q": {"seeds": [0, 1], "hashes": ["a", "b"], "metrics": {"m": [1.0]}}}}', "1 values for 2 seeds"),
-])
+@pytest.mark.parametrize(
+    "content, problem",
+    [
+        ("", "not valid JSON"),
+        ('{"format": "riverbench-baseline", "format_version": 1, "scenarios": {', "not valid JSON"),
+        ('{"some": "thing"}', "not a riverbench baseline"),
+        ('{"format": "riverbench-baseline", "format_version": 99}', "format version 99"),
+        (
+            '{"format": "riverbench-baseline", "format_version": 1, "created_utc": "x", "provenance": {}, "fast": true, '
+            '"scenarios": {"q": {"seeds": [0, 1], "hashes": ["a", "b"], "metrics": {"m": [1.0]}}}}',
+            "1 values for 2 seeds",
+        ),
+    ],
+)
 def test_a_bad_baseline_file_is_one_line_naming_the_problem_and_exit_2(tmp_path, content, problem):
     good = tmp_path / "good.json"
     _baseline({APE: [3.0] * 5}).save(good)
@@ -158,8 +168,7 @@ def test_compare_baselines_exits_1_on_a_regression_0_otherwise_and_writes_json_a
     _baseline({APE: [3.0, 3.2, 2.8, 3.1, 2.9], RECALL: [1.0] * 5}).save(base)
     _baseline({APE: [4.0, 4.2, 3.8, 4.1, 3.9], RECALL: [1.0] * 5}).save(worse)
     _baseline({APE: [2.0, 2.2, 1.8, 2.1, 1.9], RECALL: [1.0] * 5}).save(better)
-    result = runner.invoke(app, ["compare-baselines", str(base), str(worse), "--json", str(tmp_path / "c.json"),
-                                 "--junit", str(tmp_path / "c.xml")])
+    result = runner.invoke(app, ["compare-baselines", str(base), str(worse), "--json", str(tmp_path / "c.json"), "--junit", str(tmp_path / "c.xml")])
     assert result.exit_code == 1, result.output
     data = json.loads((tmp_path / "c.json").read_text())
     (moved,) = data["metrics"]

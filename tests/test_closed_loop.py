@@ -115,9 +115,13 @@ def steer(route: Route, believed, seconds: float, start=(0.0, 0.0, 0.0, 2.0)) ->
 def bend_route() -> Route:
     """100 m straight along x, a 90-degree left bend of 80 m radius (about as tight as the Charles gets), 120 m straight north."""
     arc = np.linspace(0.0, np.pi / 2, 25)[1:]
-    waypoints = np.vstack([np.c_[np.linspace(0.0, 100.0, 21), np.zeros(21)],
-                           np.c_[100.0 + 80.0 * np.sin(arc), 80.0 - 80.0 * np.cos(arc)],
-                           np.c_[np.full(24, 180.0), np.linspace(85.0, 200.0, 24)]])
+    waypoints = np.vstack(
+        [
+            np.c_[np.linspace(0.0, 100.0, 21), np.zeros(21)],
+            np.c_[100.0 + 80.0 * np.sin(arc), 80.0 - 80.0 * np.cos(arc)],
+            np.c_[np.full(24, 180.0), np.linspace(85.0, 200.0, 24)],
+        ]
+    )
     return Route.from_waypoints(waypoints, 40.0, 40.0)
 
 
@@ -138,8 +142,10 @@ def test_the_autopilot_steering_on_a_frozen_pose_holds_its_heading_and_leaves_th
 
 
 def test_a_closed_loop_scenario_run_writes_the_vessel_track_and_metrics(tmp_path):
-    scenario = scenarios.load("open_river", set=["stretch={start_m=100.0, end_m=130.0}", "control.mode=closed_loop",
-                                                 "control.steer_on=ekf", "expect=['vessel.min_clearance_m > 100']"])
+    scenario = scenarios.load(
+        "open_river",
+        set=["stretch={start_m=100.0, end_m=130.0}", "control.mode=closed_loop", "control.steer_on=ekf", "expect=['vessel.min_clearance_m > 100']"],
+    )
     result = scenarios.run(scenario, tmp_path / "run", workers=1, report=False)
     vessel = json.loads((tmp_path / "run" / "metrics.json").read_text())["vessel"]
     assert vessel["outcome"] == "completed" and vessel["completed"] == 1 and vessel["collisions"] == 0
@@ -158,10 +164,18 @@ def test_steering_on_an_unknown_estimator_is_a_one_line_error():
 def test_a_closed_loop_scenario_exports_the_driven_motion(tmp_path):
     from scenarios.export.frames import open_stream
 
-    scenario = scenarios.load("open_river", set=["stretch={start_m=100.0, end_m=110.0}", "control.mode=closed_loop",
-                                                 "control.current_enu_mps=[0.0, 0.5]", "matchers=[]",
-                                                 "estimators=[{id = 'gps_only', kind = 'gps_only'}]", "control.steer_on=gps_only",
-                                                 "expect=[]"])
+    scenario = scenarios.load(
+        "open_river",
+        set=[
+            "stretch={start_m=100.0, end_m=110.0}",
+            "control.mode=closed_loop",
+            "control.current_enu_mps=[0.0, 0.5]",
+            "matchers=[]",
+            "estimators=[{id = 'gps_only', kind = 'gps_only'}]",
+            "control.steer_on=gps_only",
+            "expect=[]",
+        ],
+    )
     info, frames = open_stream(scenario)
     frames = list(frames)
     assert 40 <= len(frames) <= info.scans + 5 and all(len(f.scan.points) for f in frames)
@@ -173,4 +187,3 @@ def test_a_closed_loop_scenario_exports_the_driven_motion(tmp_path):
     route = worlds.load("open_river").route
     cross = route.project(np.array([f.base_pose[:2, 3] for f in frames]))[1]
     assert np.abs(cross).max() > 0.05
-

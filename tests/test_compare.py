@@ -31,15 +31,19 @@ APE_P95 = {  # (scenario, noise) -> estimator -> per seed
 }
 BLACKOUT = {"gps_only": [20.0, 21.0, 22.0], "ekf": [4.0, 5.0, 6.0], "pf": [3.0, 3.5, 3.8]}  # bridge only
 NLOS = {"gps_only": [15.0, 16.0, 17.0], "ekf": [6.0, 7.0, 8.0], "pf": [9.0, 10.0, 11.0]}  # canal only
-MATCHERS = {"icp": {"success": [0.97, 0.98, 0.99], "hz": [20.0, 22.0, 24.0], "aligned": [0.2, 0.25, 0.3]},
-            "bev": {"success": [0.80, 0.85, 0.90], "hz": [100.0, 110.0, 120.0], "aligned": [0.5, 0.6, 0.7]}}
+MATCHERS = {
+    "icp": {"success": [0.97, 0.98, 0.99], "hz": [20.0, 22.0, 24.0], "aligned": [0.2, 0.25, 0.3]},
+    "bev": {"success": [0.80, 0.85, 0.90], "hz": [100.0, 110.0, 120.0], "aligned": [0.5, 0.6, 0.7]},
+}
 EKF_RECALL, EKF_FALSE_ALARMS = [0.5, 0.6, 0.7], [0.01, 0.02, 0.03]
 PF_FAILS = ("bridge", 0.05, 2)
 ICP_FAILS = ("canal", 0.05, 1)
 # bridge, noise 0.02: per seed, gps.csv rows (quality, added_err_h, ekf.statistic, ekf.trusted)
-FIXES = {0: [(1, 8.0, 5.0, 0), (1, 1.0, 1.0, 1), (1, 2.0, 3.0, 0), (0, 9.0, math.nan, 1)],
-         1: [(1, 6.0, 2.0, 1), (1, 0.5, 4.0, 0), (6, 7.0, 9.0, 0), (1, 0.2, 0.5, 1)],
-         2: [(1, 10.0, 6.0, 0), (1, 0.0, 0.1, 1), (1, 0.0, 0.2, 1), (1, 0.0, 0.3, 1)]}
+FIXES = {
+    0: [(1, 8.0, 5.0, 0), (1, 1.0, 1.0, 1), (1, 2.0, 3.0, 0), (0, 9.0, math.nan, 1)],
+    1: [(1, 6.0, 2.0, 1), (1, 0.5, 4.0, 0), (6, 7.0, 9.0, 0), (1, 0.2, 0.5, 1)],
+    2: [(1, 10.0, 6.0, 0), (1, 0.0, 0.1, 1), (1, 0.0, 0.2, 1), (1, 0.0, 0.3, 1)],
+}
 # by hand: measured fixes pooled, statistic descending: 6F 5F 4C 3C 2F 1C .5C .3C .2C .1C (3 faulty, 7 clean)
 ROC_FA = [0, 0, 0, 1 / 7, 2 / 7, 2 / 7, 3 / 7, 4 / 7, 5 / 7, 6 / 7, 1]
 ROC_RECALL = [0, 1 / 3, 2 / 3, 2 / 3, 2 / 3, 1, 1, 1, 1, 1, 1]
@@ -52,17 +56,26 @@ def stats(p95: float) -> dict:
 
 
 def window(max_error: float | None) -> dict:
-    return {"count": int(max_error is not None), "seconds": 10.0, "max_error": max_error, "exit_error": max_error, "added": None,
-            "recover_s": None, "recovered": None}
+    return {
+        "count": int(max_error is not None),
+        "seconds": 10.0,
+        "max_error": max_error,
+        "exit_error": max_error,
+        "added": None,
+        "recover_s": None,
+        "recovered": None,
+    }
 
 
 def scenario_toml(name: str, seed: int, noise: float) -> str:
-    return (f'name = "{name}"\ndescription = "synthetic {name}"\nseed = {seed}\nworld = "charles_river"\n\n'
-            f"[stretch]\nstart_m = 0.0\nend_m = 100.0\n\n[lidar]\nrange_noise_m = {noise}\n\n"
-            '[[matchers]]\nid = "icp"\nkind = "gicp"\n\n[[matchers]]\nid = "bev"\nkind = "bev3dof"\n\n'
-            '[[estimators]]\nid = "gps_only"\nkind = "gps_only"\nmonitor = "none"\n\n'
-            '[[estimators]]\nid = "ekf"\nkind = "ekf"\nmatcher = "icp"\nmonitor = "nis"\n\n'
-            '[[estimators]]\nid = "pf"\nkind = "pf"\nmatcher = "icp"\nmonitor = "none"\n')
+    return (
+        f'name = "{name}"\ndescription = "synthetic {name}"\nseed = {seed}\nworld = "charles_river"\n\n'
+        f"[stretch]\nstart_m = 0.0\nend_m = 100.0\n\n[lidar]\nrange_noise_m = {noise}\n\n"
+        '[[matchers]]\nid = "icp"\nkind = "gicp"\n\n[[matchers]]\nid = "bev"\nkind = "bev3dof"\n\n'
+        '[[estimators]]\nid = "gps_only"\nkind = "gps_only"\nmonitor = "none"\n\n'
+        '[[estimators]]\nid = "ekf"\nkind = "ekf"\nmatcher = "icp"\nmonitor = "nis"\n\n'
+        '[[estimators]]\nid = "pf"\nkind = "pf"\nmatcher = "icp"\nmonitor = "none"\n'
+    )
 
 
 def metrics_of(name: str, seed: int, noise: float) -> dict:
@@ -70,31 +83,57 @@ def metrics_of(name: str, seed: int, noise: float) -> dict:
     failures = []
     estimators = {}
     for eid, values in APE_P95[(name, noise)].items():
-        node = {"available": 1.0, "ape": stats(values[i]), "rpe_100m": {**stats(1.0), "pairs": 5, "percent": 1.0}, "yaw": stats(2.0),
-                "windows": {"blackout": window(BLACKOUT[eid][i] if name == "bridge" else None),
-                            "nlos": window(NLOS[eid][i] if name == "canal" else None), "reacquisition": window(None), "injected": window(None)},
-                "monitor": {"added_5m": {"recall": EKF_RECALL[i] if eid == "ekf" else 0.0,
-                                         "false_alarm_rate": EKF_FALSE_ALARMS[i] if eid == "ekf" else 0.0}},
-                "failed": False}
+        node = {
+            "available": 1.0,
+            "ape": stats(values[i]),
+            "rpe_100m": {**stats(1.0), "pairs": 5, "percent": 1.0},
+            "yaw": stats(2.0),
+            "windows": {
+                "blackout": window(BLACKOUT[eid][i] if name == "bridge" else None),
+                "nlos": window(NLOS[eid][i] if name == "canal" else None),
+                "reacquisition": window(None),
+                "injected": window(None),
+            },
+            "monitor": {
+                "added_5m": {"recall": EKF_RECALL[i] if eid == "ekf" else 0.0, "false_alarm_rate": EKF_FALSE_ALARMS[i] if eid == "ekf" else 0.0}
+            },
+            "failed": False,
+        }
         if (name, noise, seed) == PF_FAILS and eid == "pf":
             node.update(failed=True, failed_at=12.0)
             failures.append({"component": "estimator", "id": "pf", "stamp": 12.0, "reason": "boom"})
         estimators[eid] = node
-    matchers = {mid: {"success": m["success"][i], "gated": 0.0, "degenerate": 0.1, "hz": m["hz"][i], "ms": {"median": 10.0, "p95": 12.0},
-                      "points": {"median": 8000.0}, "ape_aligned": stats(m["aligned"][i]), "rpe_100m": stats(1.0), "yaw": stats(1.0),
-                      "failed": False} for mid, m in MATCHERS.items()}
+    matchers = {
+        mid: {
+            "success": m["success"][i],
+            "gated": 0.0,
+            "degenerate": 0.1,
+            "hz": m["hz"][i],
+            "ms": {"median": 10.0, "p95": 12.0},
+            "points": {"median": 8000.0},
+            "ape_aligned": stats(m["aligned"][i]),
+            "rpe_100m": stats(1.0),
+            "yaw": stats(1.0),
+            "failed": False,
+        }
+        for mid, m in MATCHERS.items()
+    }
     if (name, noise, seed) == ICP_FAILS:  # only in the run's failure list
         failures.append({"component": "matcher", "id": "icp", "stamp": 5.0, "reason": "bang"})
-    return {"run": {"scenario": name, "scenario_hash": f"{name}{noise}{seed}".replace(".", ""), "seed": seed, "failures": failures},
-            "estimators": estimators, "matchers": matchers,
-            "expectations": [{"expect": "a", "value": 1.0, "pass": True, "reason": ""}, {"expect": "b", "value": 2.0, "pass": seed != 1, "reason": ""}]}
+    return {
+        "run": {"scenario": name, "scenario_hash": f"{name}{noise}{seed}".replace(".", ""), "seed": seed, "failures": failures},
+        "estimators": estimators,
+        "matchers": matchers,
+        "expectations": [{"expect": "a", "value": 1.0, "pass": True, "reason": ""}, {"expect": "b", "value": 2.0, "pass": seed != 1, "reason": ""}],
+    }
 
 
 def write_gps(path, rows) -> None:
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["t", "quality", "added_err_h", "gps_only.trusted", "gps_only.statistic", "ekf.trusted", "ekf.statistic",
-                    "pf.trusted", "pf.statistic"])
+        w.writerow(
+            ["t", "quality", "added_err_h", "gps_only.trusted", "gps_only.statistic", "ekf.trusted", "ekf.statistic", "pf.trusted", "pf.statistic"]
+        )
         for k, (quality, added, statistic, trusted) in enumerate(rows):
             w.writerow([f"{0.2 * k:.3f}", quality, added, 1, "0.0000", trusted, "" if math.isnan(statistic) else statistic, 1, "0.0000"])
 
@@ -152,6 +191,7 @@ def row(text: str, first: str, nth: int = 0) -> list[str]:
 
 # ---- discovery and grouping ---------------------------------------------------------------------------
 
+
 def test_runs_are_found_in_sweep_and_suite_layouts_and_hidden_ones_skipped(tree):
     runs = compare.collect([tree])
     assert len(runs) == 12
@@ -169,8 +209,18 @@ def test_runs_are_grouped_by_configuration_and_labelled_by_what_differs(tree):
 def test_labels_name_list_tables_by_id():
     base = {"name": "s", "seed": 0, "matchers": [{"id": "gicp", "kind": "gicp", "params": {"voxel_m": 0.3}}], "expect": ["x < 1"]}
     assert groups.flatten(base) == {"name": "s", "seed": 0, "matchers.gicp.kind": "gicp", "matchers.gicp.params.voxel_m": 0.3, "expect": ["x < 1"]}
-    runs = [RunInfo(Path(f"/nowhere/{v}-{seed}"), "s", seed, "", {**base, "seed": seed, "matchers": [
-        {"id": "gicp", "kind": "gicp", "params": {"voxel_m": v}}]}, {"run": {}}) for v in (1.0, 0.5) for seed in (0, 1)]
+    runs = [
+        RunInfo(
+            Path(f"/nowhere/{v}-{seed}"),
+            "s",
+            seed,
+            "",
+            {**base, "seed": seed, "matchers": [{"id": "gicp", "kind": "gicp", "params": {"voxel_m": v}}]},
+            {"run": {}},
+        )
+        for v in (1.0, 0.5)
+        for seed in (0, 1)
+    ]
     confs = groups.configurations(runs)
     assert [c.title for c in confs] == ["s (matchers.gicp.params.voxel_m=0.5)", "s (matchers.gicp.params.voxel_m=1.0)"]
     assert [len(c.runs) for c in confs] == [2, 2]
@@ -189,6 +239,7 @@ def test_labels_leave_out_keys_that_follow_from_another_unless_needed():
 
 
 # ---- numbers, ranking, failures ------------------------------------------------------------------------
+
 
 def test_summary_table_prints_medians_and_ranges_best_in_each_row(tree):
     text = compare.summary_markdown([tree])
@@ -223,16 +274,18 @@ def test_per_configuration_tables_with_failure_rates_and_monitor_scores(written)
 
 def test_sentences_say_whether_a_win_exceeds_the_spread(written):
     text = written[1]
-    assert ("Lowest APE p95: ekf 2.80 m (2.60–3.10 over 3 seeds) against pf 7.50 m (7.20–7.90): a clear difference."
-            in section(text, TITLES[0]))
-    assert ("Lowest APE p95: ekf 3.20 m (3.00–3.40 over 3 seeds) against pf 8.25 m (8.00–8.50 over 2 seeds): a clear difference."
-            in section(text, TITLES[1]))
-    assert ("Lowest APE p95: ekf 3.50 m (3.00–4.00 over 3 seeds) against pf 3.60 m (3.20–4.40): within the spread: no clear winner."
-            in section(text, TITLES[2]))
+    assert "Lowest APE p95: ekf 2.80 m (2.60–3.10 over 3 seeds) against pf 7.50 m (7.20–7.90): a clear difference." in section(text, TITLES[0])
+    assert "Lowest APE p95: ekf 3.20 m (3.00–3.40 over 3 seeds) against pf 8.25 m (8.00–8.50 over 2 seeds): a clear difference." in section(
+        text, TITLES[1]
+    )
+    assert "Lowest APE p95: ekf 3.50 m (3.00–4.00 over 3 seeds) against pf 3.60 m (3.20–4.40): within the spread: no clear winner." in section(
+        text, TITLES[2]
+    )
     assert "Highest matching success: icp 98.0 % (97.0 %–99.0 % over 3 seeds) against bev 85.0 % (80.0 %–90.0 %): a clear difference." in text
     summary = section(text, "Summary")
-    assert ("Lowest APE p95: ekf in 3 of 4 configurations (clear in 2, within the spread in 1); "
-            "pf in 1 of 4 configurations (within the spread in 1).") in summary
+    assert (
+        "Lowest APE p95: ekf in 3 of 4 configurations (clear in 2, within the spread in 1); pf in 1 of 4 configurations (within the spread in 1)."
+    ) in summary
     assert "Under bridges (worst error in blackout windows): pf in 2 of 2 configurations (clear in 2)." in summary
     assert "Beside walls and in canals (worst error in NLOS windows): ekf in 2 of 2 configurations (clear in 2)." in summary
     assert "Fastest matcher: bev in 4 of 4 configurations (clear in 4)." in summary
@@ -262,6 +315,7 @@ def test_an_estimator_failing_in_every_run_prints_dashes(tree, tmp_path):
 
 # ---- monitor ROC ---------------------------------------------------------------------------------------
 
+
 def test_roc_pools_the_measured_fixes_of_all_seeds(tree):
     confs = groups.configurations(compare.collect([tree]))
     roc = confs[0].roc
@@ -285,6 +339,7 @@ def test_one_roc_figure_for_the_configuration_with_faulty_fixes(written, tree):
 
 
 # ---- files -----------------------------------------------------------------------------------------------
+
 
 def test_html_is_self_contained(written):
     page = written[2]
@@ -327,8 +382,13 @@ def test_bad_input_is_one_line_naming_the_path_and_writes_nothing(tree, tmp_path
         (source / "run" / "scenario.toml").write_text("name = [")
     if case == "run_dir_out":
         out = source / "run"
-    bad = {"missing": source, "empty": source, "bad_json": source / "run" / "metrics.json", "bad_toml": source / "run" / "scenario.toml",
-           "run_dir_out": out}[case]
+    bad = {
+        "missing": source,
+        "empty": source,
+        "bad_json": source / "run" / "metrics.json",
+        "bad_toml": source / "run" / "scenario.toml",
+        "run_dir_out": out,
+    }[case]
     before = sorted(tmp_path.rglob("*"))
     with pytest.raises(ValueError) as error:
         compare.write([source], out)
@@ -338,6 +398,7 @@ def test_bad_input_is_one_line_naming_the_path_and_writes_nothing(tree, tmp_path
 
 
 # ---- real runs ---------------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def real_runs(tmp_path_factory):
@@ -371,8 +432,12 @@ def test_closed_loop_runs_get_a_vessel_table_with_collisions_over_seeds(tmp_path
             (run_dir / "scenario.toml").write_text(toml)
             data = json.loads((run_dir / "metrics.json").read_text())
             data["run"]["scenario_hash"] += steer
-            data["vessel"] = {"collisions": int(clearance == 0.0), "min_clearance_m": clearance, "time_below_threshold_s": 0.0,
-                              "cross_track": {"max": 2.0 if steer == "ekf" else 9.0}}
+            data["vessel"] = {
+                "collisions": int(clearance == 0.0),
+                "min_clearance_m": clearance,
+                "time_below_threshold_s": 0.0,
+                "cross_track": {"max": 2.0 if steer == "ekf" else 9.0},
+            }
             (run_dir / "metrics.json").write_text(json.dumps(data))
     text = (compare.write([tmp_path], tmp_path / "report").parent / "report.md").read_text().split("### Vessel")[1]
     assert row(text, "bridge (control.steer_on=ekf)")[1:4] == ["ekf", "0 of 3", "9.90 (9.50–10.20)"]

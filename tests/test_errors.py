@@ -38,13 +38,16 @@ def _error(data: dict) -> ValidationError:
     return info.value
 
 
-@pytest.mark.parametrize(("data", "line"), [
-    ({"inner": {"rate_hz": -1}}, "f.toml: inner.rate_hz: Input should be greater than 0"),
-    ({"inner": {"bogus": 1}}, "f.toml: unknown key 'inner.bogus'"),
-    ({"inner": {"rate_hz": 7}}, "f.toml: inner.rate_hz: seven is unlucky"),
-    ({"n": 13}, "f.toml: n and inner disagree"),
-    ({"inner": {"rate_hz": -1}, "n": "x", "extra": 1}, "f.toml: inner.rate_hz: Input should be greater than 0 (and 2 more)"),
-])
+@pytest.mark.parametrize(
+    ("data", "line"),
+    [
+        ({"inner": {"rate_hz": -1}}, "f.toml: inner.rate_hz: Input should be greater than 0"),
+        ({"inner": {"bogus": 1}}, "f.toml: unknown key 'inner.bogus'"),
+        ({"inner": {"rate_hz": 7}}, "f.toml: inner.rate_hz: seven is unlucky"),
+        ({"n": 13}, "f.toml: n and inner disagree"),
+        ({"inner": {"rate_hz": -1}, "n": "x", "extra": 1}, "f.toml: inner.rate_hz: Input should be greater than 0 (and 2 more)"),
+    ],
+)
 def test_a_validation_error_is_one_line_naming_where_the_key_and_the_problem(data, line):
     assert validation_message(_error(data), "f.toml") == line
 

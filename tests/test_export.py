@@ -42,8 +42,7 @@ def kitti_correction(points: np.ndarray) -> np.ndarray:
     axis = np.cross(points, [0.0, 0.0, 1.0])
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     angle = np.radians(0.205)
-    return (points * np.cos(angle) + np.cross(axis, points) * np.sin(angle)
-            + axis * (axis * points).sum(axis=1, keepdims=True) * (1.0 - np.cos(angle)))
+    return points * np.cos(angle) + np.cross(axis, points) * np.sin(angle) + axis * (axis * points).sum(axis=1, keepdims=True) * (1.0 - np.cos(angle))
 
 
 def leftovers(parent) -> list[str]:
@@ -181,11 +180,14 @@ def test_result_progress_and_run_directory_source(tmp_path):
     assert leftovers(tmp_path) == ["out", "run"]
 
 
-@pytest.mark.parametrize("source, fmt, message", [
-    ("quickstart", "las", "unknown export format 'las'; the formats are: kitti, pcd, ply, pcap"),
-    ("no_such_scenario", "kitti", "unknown scenario 'no_such_scenario'"),
-    (".", "kitti", "is a directory without scenario.toml"),
-])
+@pytest.mark.parametrize(
+    "source, fmt, message",
+    [
+        ("quickstart", "las", "unknown export format 'las'; the formats are: kitti, pcd, ply, pcap"),
+        ("no_such_scenario", "kitti", "unknown scenario 'no_such_scenario'"),
+        (".", "kitti", "is a directory without scenario.toml"),
+    ],
+)
 def test_bad_input_is_one_line_and_writes_nothing(tmp_path, source, fmt, message):
     with pytest.raises(ValueError) as info:
         export(tmp_path if source == "." else source, fmt, tmp_path / "out", set=ONE_S)
@@ -203,9 +205,11 @@ def test_non_empty_output_directory_is_refused_and_kept(tmp_path):
 
 def patch_frames(monkeypatch, wrap):
     """Make export() read its frames through `wrap(frames, info)`."""
+
     def patched(scenario):
         info, frames = open_stream(scenario)
         return info, wrap(frames, info)
+
     monkeypatch.setattr(export_module, "open_stream", patched)
 
 
@@ -217,6 +221,7 @@ def test_a_stream_failing_part_way_leaves_nothing(tmp_path, monkeypatch, fmt, er
             if frame.index == 4:
                 raise error("simulation failed")
             yield frame
+
     patch_frames(monkeypatch, failing)
     with pytest.raises(error):
         export("quickstart", fmt, tmp_path / "deep" / "out", set=ONE_S)
@@ -239,6 +244,7 @@ def test_each_frame_is_on_disk_before_the_next_is_simulated(tmp_path, monkeypatc
         for frame in frames:
             written.append(staged_bytes(tmp_path))
             yield frame
+
     patch_frames(monkeypatch, lazy)
     export("quickstart", fmt, tmp_path / "out", set=ONE_S)
     assert len(written) == 10 and np.all(np.diff(written) > 10_000), written
@@ -258,11 +264,18 @@ def test_the_export_command_writes_a_pcap_and_refuses_bad_input_in_one_line(tmp_
     import sys
 
     cli = [sys.executable, "-m", "scenarios.cli", "export", "canal_multipath"]
-    ok = subprocess.run([*cli, "--format", "pcap", "--out", "s.pcap", "--set", "stretch={start_s = 60.0, end_s = 60.5}", "--quiet"],
-                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    ok = subprocess.run(
+        [*cli, "--format", "pcap", "--out", "s.pcap", "--set", "stretch={start_s = 60.0, end_s = 60.5}", "--quiet"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert ok.returncode == 0, ok.stderr
     assert "5 scans" in ok.stdout and (tmp_path / "s.pcap").stat().st_mode & 0o777 == 0o644
-    for args, message in ((["--format", "las", "--out", "x"], "unknown export format 'las'"),
-                          (["--format", "pcap", "--out", "s.pcap"], "already exists")):
+    for args, message in (
+        (["--format", "las", "--out", "x"], "unknown export format 'las'"),
+        (["--format", "pcap", "--out", "s.pcap"], "already exists"),
+    ):
         bad = subprocess.run([*cli, *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1 and not bad.stdout.strip()

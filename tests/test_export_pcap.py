@@ -4,7 +4,7 @@ the position packets' GPRMC) and dpkt plus byte-level checks (libpcap, Ethernet,
 import dataclasses
 import math
 import struct
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import dpkt
 import numpy as np
@@ -88,7 +88,7 @@ def test_data_packets_as_the_manual_lays_them_out(stream):
     usec = payload[:, 1200:1204].copy().view("<u4").ravel()
     record_us = np.array([round(ts * 1e6) for ts, _ in packets])
     np.testing.assert_array_equal(usec, record_us % 3_600_000_000)
-    first = datetime.fromtimestamp(packets[0][0], timezone.utc)
+    first = datetime.fromtimestamp(packets[0][0], UTC)
     assert abs(first - (info.epoch_utc + timedelta(seconds=frames[0].stamp))) < timedelta(microseconds=1)
 
 
@@ -118,8 +118,15 @@ def test_position_packets_carry_the_receivers_gprmc(stream):
         fix = fixes[np.searchsorted(fix_utc, ts + 1e-9, side="right") - 1]  # the latest fix by then
         assert f[0] == "GPRMC" and f[2] == "A" and f[9] == f"{info.epoch_utc:%d%m%y}"
         when = datetime.fromisoformat(fix.utc)
-        assert abs(int(f[1][:2]) * 3600 + int(f[1][2:4]) * 60 + float(f[1][4:]) - (when.hour * 3600 + when.minute * 60 + when.second
-                   + when.microsecond / 1e6)) <= 0.005
+        assert (
+            abs(
+                int(f[1][:2]) * 3600
+                + int(f[1][2:4]) * 60
+                + float(f[1][4:])
+                - (when.hour * 3600 + when.minute * 60 + when.second + when.microsecond / 1e6)
+            )
+            <= 0.005
+        )
         lat = (int(f[3][:2]) + float(f[3][2:]) / 60.0) * (1 if f[4] == "N" else -1)
         lon = (int(f[5][:3]) + float(f[5][3:]) / 60.0) * (1 if f[6] == "E" else -1)
         assert abs(lat - fix.lat) < 1e-7 and abs(lon - fix.lon) < 1e-7  # 5 decimals of minutes
@@ -135,7 +142,7 @@ def test_capture_is_valid_libpcap(stream):
     offset, last, n = 24, 0.0, 0
     while offset < len(raw):
         sec, usec, incl, orig = struct.unpack_from("<IIII", raw, offset)
-        frame = raw[offset + 16:offset + 16 + incl]
+        frame = raw[offset + 16 : offset + 16 + incl]
         assert incl == orig == len(frame) in (42 + 1206, 42 + 512) and usec < 1_000_000 and sec + usec * 1e-6 >= last
         assert frame[:6] == b"\xff" * 6 and frame[12:14] == b"\x08\x00"
         ip = frame[14:34]

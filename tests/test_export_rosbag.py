@@ -24,12 +24,16 @@ from scenarios.export.frames import open_stream
 from scenarios.export.ros_messages import UERE_M, ros_ns
 
 CANAL_3S = ["stretch={start_m = 350.0, end_m = 356.0}"]  # canal_multipath: 3 s, 31 scans; walls, quays, the road bridge 30 m ahead
-OUTAGE_1S = ["stretch={start_m = 3950.0, end_m = 3952.0}", "gnss.coast_limit_s=0.3",  # quickstart from t=1974.73 s: one fix,
-             "gnss.forced_outages=[{start_s = 1974.9, end_s = 1980.0}]"]  # then dead reckoning (quality 6), then no fix (0)
+OUTAGE_1S = [
+    "stretch={start_m = 3950.0, end_m = 3952.0}",
+    "gnss.coast_limit_s=0.3",  # quickstart from t=1974.73 s: one fix,
+    "gnss.forced_outages=[{start_s = 1974.9, end_s = 1980.0}]",
+]  # then dead reckoning (quality 6), then no fix (0)
 FORMATS = {"rosbag2": "sqlite3", "mcap": "mcap"}
 POINTFIELD = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("ring", 16, 4), ("time", 18, 7)]  # 7 FLOAT32, 4 UINT16
-XYZIRT = np.dtype({"names": ["x", "y", "z", "intensity", "ring", "time"], "formats": ["<f4"] * 4 + ["<u2", "<f4"],
-                   "offsets": [0, 4, 8, 12, 16, 18], "itemsize": 22})
+XYZIRT = np.dtype(
+    {"names": ["x", "y", "z", "intensity", "ring", "time"], "formats": ["<f4"] * 4 + ["<u2", "<f4"], "offsets": [0, 4, 8, 12, 16, 18], "itemsize": 22}
+)
 
 
 def simulated(name: str, overrides: list[str]):
@@ -87,11 +91,14 @@ def test_a_bag_directory_with_every_topic_and_its_count(canal, fmt):
     with AnyReader([bags[fmt]]) as reader:
         counts = {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
         qos = {c.topic: c.ext.offered_qos_profiles[0].durability for c in reader.connections}
-    assert counts == {"/velodyne_points": ("sensor_msgs/msg/PointCloud2", len(frames)),
-                      "/gps/fix": ("sensor_msgs/msg/NavSatFix", len(fixes)),
-                      "/nmea_sentence": ("nmea_msgs/msg/Sentence", sum(len(fix.nmea()) for fix in fixes)),
-                      "/tf_static": ("tf2_msgs/msg/TFMessage", 1), "/tf": ("tf2_msgs/msg/TFMessage", len(frames)),
-                      "/odom/ground_truth": ("nav_msgs/msg/Odometry", len(frames))}
+    assert counts == {
+        "/velodyne_points": ("sensor_msgs/msg/PointCloud2", len(frames)),
+        "/gps/fix": ("sensor_msgs/msg/NavSatFix", len(fixes)),
+        "/nmea_sentence": ("nmea_msgs/msg/Sentence", sum(len(fix.nmea()) for fix in fixes)),
+        "/tf_static": ("tf2_msgs/msg/TFMessage", 1),
+        "/tf": ("tf2_msgs/msg/TFMessage", len(frames)),
+        "/odom/ground_truth": ("nav_msgs/msg/Odometry", len(frames)),
+    }
     assert len(frames) == info.scans == 31 and len(fixes) > 10
     assert qos.pop("/tf_static") == QosDurability.TRANSIENT_LOCAL and set(qos.values()) == {QosDurability.VOLATILE}
 
@@ -194,10 +201,10 @@ def test_kiss_icp_pipeline_on_both_bags_tracks_the_vessel(canal, tmp_path):
     poses = {}
     for fmt, bag in bags.items():
         config = tmp_path / f"{fmt}.yaml"  # voxel 0.5 m as the bench's kiss_icp matcher; one thread: deterministic
-        config.write_text(yaml.safe_dump({"out_dir": str(tmp_path / fmt), "mapping": {"voxel_size": 0.5},
-                                          "registration": {"max_num_threads": 1}}))
-        run = subprocess.run([str(Path(sys.executable).parent / "kiss_icp_pipeline"), str(bag), "--config", str(config)],
-                             capture_output=True, text=True, timeout=300)
+        config.write_text(yaml.safe_dump({"out_dir": str(tmp_path / fmt), "mapping": {"voxel_size": 0.5}, "registration": {"max_num_threads": 1}}))
+        run = subprocess.run(
+            [str(Path(sys.executable).parent / "kiss_icp_pipeline"), str(bag), "--config", str(config)], capture_output=True, text=True, timeout=300
+        )
         assert run.returncode == 0, run.stderr[-2000:]
         poses[fmt] = np.load(tmp_path / fmt / "latest" / f"{fmt}_poses.npy")
     np.testing.assert_array_equal(poses["rosbag2"], poses["mcap"])
@@ -223,7 +230,9 @@ def test_a_stream_failing_after_frames_were_committed_leaves_nothing(tmp_path, m
                     assert bag.stat().st_size > 6 * 50_000  # six scans of ~5,000 points (22 bytes each) already on disk
                     raise error("simulation failed")
                 yield frame
+
         return info, stream()
+
     monkeypatch.setattr(export_module, "open_stream", failing)
     with pytest.raises(error):
         export("quickstart", fmt, tmp_path / "out", set=OUTAGE_1S[:1])

@@ -27,7 +27,7 @@ def test_perfect_odometry_without_gps_reproduces_odometry():
     events, t_grid, poses = generate(spec)
     ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(1e-6, 1e-6), **EXACT_ODOMETRY)
     chain = np.asarray(pose_at(t_grid, poses, 0.0))
-    for kind, stamp, result in events:
+    for _kind, stamp, result in events:
         ekf.add_match(stamp, result)
         if result.ok:
             T = result.T
@@ -60,8 +60,15 @@ def _mean_nees(gps_tau: float, filter_tau: float, runs: int = 12) -> np.ndarray:
         rng = np.random.default_rng(100 + seed)
         x, y, yaw = _initial(t_grid, poses)
         start = (x + rng.normal(0, 1.0), y + rng.normal(0, 1.0), yaw + rng.normal(0, 5.0))
-        ekf = fusion.create("ekf", monitor="none", gps_correlation_s=filter_tau, gps_white_sigma_m=0.01,
-                            initial_pose=start, initial_sigma=(1.0, 5.0), **EXACT_ODOMETRY)
+        ekf = fusion.create(
+            "ekf",
+            monitor="none",
+            gps_correlation_s=filter_tau,
+            gps_white_sigma_m=0.01,
+            initial_pose=start,
+            initial_sigma=(1.0, 5.0),
+            **EXACT_ODOMETRY,
+        )
         out = run(ekf, events)
         err = errors(out, t_grid, poses)
         nees.append(np.einsum("ni,nij,nj->n", err, np.linalg.inv(out["cov"]), err))
@@ -101,11 +108,13 @@ def test_degenerate_odometry_leans_on_gps_along_that_axis(mount_yaw_deg):
     results = {}
     for name, cov in (("degenerate", degenerate), ("confident", confident)):
         # white GPS noise (and the filter told so): a question of geometry, not of noise colour
-        spec = StreamSpec(duration=60.0, turn_amp_dps=0.0, odom_sigma=(0, 0, 0), odom_cov_scale=cov,
-                          odom_corrupt=(0.0, 1.0), mount=mount, gps_tau=0.0, seed=3)
+        spec = StreamSpec(
+            duration=60.0, turn_amp_dps=0.0, odom_sigma=(0, 0, 0), odom_cov_scale=cov, odom_corrupt=(0.0, 1.0), mount=mount, gps_tau=0.0, seed=3
+        )
         events, t_grid, poses = generate(spec)
-        ekf = fusion.create("ekf", monitor="none", initial_pose=_initial(t_grid, poses), gps_correlation_s=0.0,
-                            mount=[list(r) for r in mount], **EXACT_ODOMETRY)
+        ekf = fusion.create(
+            "ekf", monitor="none", initial_pose=_initial(t_grid, poses), gps_correlation_s=0.0, mount=[list(r) for r in mount], **EXACT_ODOMETRY
+        )
         out = run(ekf, events)
         err = errors(out, t_grid, poses)
         yaw = pose_at(t_grid, poses, 0.0)[2]
@@ -147,7 +156,7 @@ def test_coasting_through_a_matcher_outage_without_gps():
     events, t_grid, poses = generate(spec)
     ekf = fusion.create("ekf", initial_pose=_initial(t_grid, poses), initial_sigma=(0.1, 0.5))
     traces = []
-    for kind, stamp, result in events:
+    for _kind, stamp, result in events:
         if 10.0 <= stamp < 13.0:
             ekf.add_match(stamp, type(result).failure("blinded"))
             traces.append(np.trace(ekf.cov[:2, :2]))
@@ -162,15 +171,24 @@ def test_a_matcher_slipping_with_a_tight_covariance_is_caught_by_the_slip_test()
     # As gicp under a charles_river bridge: from t = 20 s every match reports no forward motion at
     # +-1 cm. The slip test makes the forward direction unobserved, so GPS and the motion model carry it.
     confident = np.diag([0.01**2, 0.01**2, math.radians(0.05) ** 2])
-    spec = StreamSpec(duration=60.0, turn_amp_dps=0.0, odom_sigma=(0, 0, 0), odom_cov_scale=confident,
-                      odom_corrupt=(0.0, 1.0), corrupt_from_s=20.0, gps_tau=0.0, seed=3)
+    spec = StreamSpec(
+        duration=60.0,
+        turn_amp_dps=0.0,
+        odom_sigma=(0, 0, 0),
+        odom_cov_scale=confident,
+        odom_corrupt=(0.0, 1.0),
+        corrupt_from_s=20.0,
+        gps_tau=0.0,
+        seed=3,
+    )
     events, t_grid, poses = generate(spec)
     gps = _gps_error(events, t_grid, poses)
     gps_rms = np.sqrt(np.mean(np.sum(gps[gps[:, 0] > 20.0, 1:] ** 2, axis=1)))
     rms = {}
     for name, slip_sigmas in (("slip test", 3.0), ("no slip test", 0.0)):
-        ekf = fusion.create("ekf", monitor="none", initial_pose=_initial(t_grid, poses), gps_correlation_s=0.0,
-                            odom_slip_frac=0.0, odom_slip_sigmas=slip_sigmas)
+        ekf = fusion.create(
+            "ekf", monitor="none", initial_pose=_initial(t_grid, poses), gps_correlation_s=0.0, odom_slip_frac=0.0, odom_slip_sigmas=slip_sigmas
+        )
         out = run(ekf, events)
         err = errors(out, t_grid, poses)[out["stamp"] > 20.0]
         rms[name] = np.sqrt(np.mean(np.sum(err[:, :2] ** 2, axis=1)))

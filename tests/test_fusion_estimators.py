@@ -43,8 +43,7 @@ def test_gps_only_holds_its_last_output_through_a_blackout():
 
 
 def test_hdop_switch_dead_reckons_through_a_blackout_with_the_odometry():
-    spec = StreamSpec(duration=40.0, odom_sigma=(0.0, 0.0, 0.0), faults=[Fault(20.0, 35.0, (0, 0), blackout=True)],
-                      uere=0.01, seed=5)
+    spec = StreamSpec(duration=40.0, odom_sigma=(0.0, 0.0, 0.0), faults=[Fault(20.0, 35.0, (0, 0), blackout=True)], uere=0.01, seed=5)
     events, t_grid, poses = generate(spec)
     est = fusion.create("hdop_switch", uere_m=0.01)
     out = run(est, events)
@@ -81,8 +80,7 @@ def test_pf_is_deterministic_for_a_seed():
 
 def test_pf_leans_on_gps_along_a_degenerate_axis():
     degenerate = np.diag([25.0, 0.01**2, math.radians(0.05) ** 2])
-    spec = StreamSpec(duration=60.0, turn_amp_dps=0.0, odom_sigma=(0, 0, 0), odom_cov_scale=degenerate,
-                      odom_corrupt=(0.0, 1.0), seed=3)
+    spec = StreamSpec(duration=60.0, turn_amp_dps=0.0, odom_sigma=(0, 0, 0), odom_cov_scale=degenerate, odom_corrupt=(0.0, 1.0), seed=3)
     events, t_grid, poses = generate(spec)
     out = run(fusion.create("pf", initial_pose=_initial(t_grid, poses), odom_slip_frac=0.0, odom_slip_sigmas=0.0), events)  # no slip here
     err = errors(out, t_grid, poses)

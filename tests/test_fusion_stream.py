@@ -48,8 +48,9 @@ def test_drive_collects_estimates_against_truth(setup):
     world, trajectory = setup
     estimators = {"gps_only": fusion.create("gps_only"), "ekf": fusion.create("ekf", matcher="kiss_icp")}
     seen = []
-    track = drive(world, trajectory, sim.HDL32E(), GnssReceiver(), {"kiss_icp": matcher.create("kiss_icp")},
-                  estimators, 20.0, 26.0, on_event=seen.append)
+    track = drive(
+        world, trajectory, sim.HDL32E(), GnssReceiver(), {"kiss_icp": matcher.create("kiss_icp")}, estimators, 20.0, 26.0, on_event=seen.append
+    )
     assert len(track.scan_stamp) == 60 and len(track.fix_stamp) == 30 and len(seen) == 90
     truth = np.array([trajectory.pose(t)[:2, 3] for t in track.scan_stamp])
     assert np.allclose(track.truth[:, :2], truth)
@@ -65,5 +66,13 @@ def test_drive_collects_estimates_against_truth(setup):
 def test_drive_needs_each_estimators_matcher(setup):
     world, trajectory = setup
     with pytest.raises(ValueError, match="estimator 'ekf' uses matcher 'gicp'"):
-        drive(world, trajectory, sim.HDL32E(), GnssReceiver(), {"kiss_icp": matcher.create("kiss_icp")},
-              {"ekf": fusion.create("ekf", matcher="gicp")}, 0.0, 1.0)
+        drive(
+            world,
+            trajectory,
+            sim.HDL32E(),
+            GnssReceiver(),
+            {"kiss_icp": matcher.create("kiss_icp")},
+            {"ekf": fusion.create("ekf", matcher="gicp")},
+            0.0,
+            1.0,
+        )

@@ -144,9 +144,7 @@ def test_intensity_grows_with_reflectivity_and_falls_with_incidence():
     lidar = HDL32E(**EXACT)
     i_concrete = lidar.scan(concrete, Trajectory(concrete), 1.0).points
     i_glass = lidar.scan(glass, Trajectory(glass), 1.0).points
-    assert np.median(i_concrete["intensity"][i_concrete["label"] == 1]) > 2 * np.median(
-        i_glass["intensity"][i_glass["label"] == 1]
-    )
+    assert np.median(i_concrete["intensity"][i_concrete["label"] == 1]) > 2 * np.median(i_glass["intensity"][i_glass["label"] == 1])
     wall_pts = i_concrete[i_concrete["label"] == 1]
     ahead = np.abs(wall_pts["x"]) / np.hypot(wall_pts["x"], wall_pts["y"])  # sine of the incidence angle
     assert np.corrcoef(ahead, wall_pts["intensity"])[0, 1] < -0.5

@@ -22,8 +22,16 @@ SPEED_MPS = 2.0
 
 @pytest.fixture(scope="module")
 def bridge_world():
-    deck = BridgeSpec(name="deck", type="beam", station_m=STATION_M, crossing_angle_deg=CROSSING_DEG, deck_height_m=6.0,
-                      deck_width_m=DECK_WIDTH_M, pier_spacing_m=40.0, pier_width_m=3.0)
+    deck = BridgeSpec(
+        name="deck",
+        type="beam",
+        station_m=STATION_M,
+        crossing_angle_deg=CROSSING_DEG,
+        deck_height_m=6.0,
+        deck_width_m=DECK_WIDTH_M,
+        pier_spacing_m=40.0,
+        pier_width_m=3.0,
+    )
     return worlds.load("open_river", length_m=400.0, width_m=200.0, bend_amplitude_m=0.0, bridges=[deck])
 
 

@@ -38,7 +38,12 @@ def _check(r, truth, t_tol, yaw_tol_deg=0.3):
 
 @pytest.mark.parametrize(
     "params",
-    [dict(prealign="ransac"), dict(prealign="fgr"), dict(prealign="ransac", icp="gicp"), dict(prealign="ransac", skip_icp_min_fitness=0.5, skip_icp_max_rmse_m=1.0, max_outlier_share=1.0)],
+    [
+        dict(prealign="ransac"),
+        dict(prealign="fgr"),
+        dict(prealign="ransac", icp="gicp"),
+        dict(prealign="ransac", skip_icp_min_fitness=0.5, skip_icp_max_rmse_m=1.0, max_outlier_share=1.0),
+    ],
     ids=["ransac", "fgr", "ransac+gicp", "skip-icp"],
 )
 def test_pcl6d_pre_alignment_recovers_a_turn(params, turned_pair):

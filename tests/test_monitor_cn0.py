@@ -31,8 +31,9 @@ def make_fix(t: float, el_deg, snr, used=None) -> GnssFix:
     used = np.ones(len(el_deg), bool) if used is None else np.asarray(used, bool)
     az = (np.arange(len(el_deg)) * 137.5) % 360.0
     sats = tuple(SatelliteReport(int(i + 1), float(a), float(e), float(s), bool(u)) for i, (a, e, s, u) in enumerate(zip(az, el_deg, snr, used)))
-    return GnssFix(stamp=t, lat=42.35, lon=-71.11, alt=0.0, enu=np.zeros(3), quality=1, num_sats=int(used.sum()),
-                   hdop=1.0, vdop=1.5, pdop=1.8, sats=sats)
+    return GnssFix(
+        stamp=t, lat=42.35, lon=-71.11, alt=0.0, enu=np.zeros(3), quality=1, num_sats=int(used.sum()), hdop=1.0, vdop=1.5, pdop=1.8, sats=sats
+    )
 
 
 def direct_cn0(el_deg, rng, offset_db=0.0) -> np.ndarray:
@@ -102,8 +103,9 @@ def test_a_weak_satellite_the_receiver_did_not_use_is_harmless(learned):
 def test_clean_fixes_pass_at_the_nominal_false_alarm_rate(learned):
     # gate 4 sigma: 3e-5 per direct satellite, 3e-4 per 10-satellite fix; allow the template's estimation error
     rng = np.random.default_rng(3)
-    verdicts = [learned.check(screen(make_fix(100.0 + 0.2 * k, el, snr), 3.0, False)[0], CTX)
-                for k, (_, el, snr) in enumerate(clean_epochs(rng, 3000))]
+    verdicts = [
+        learned.check(screen(make_fix(100.0 + 0.2 * k, el, snr), 3.0, False)[0], CTX) for k, (_, el, snr) in enumerate(clean_epochs(rng, 3000))
+    ]
     assert np.mean([not v.trusted for v in verdicts]) < 0.003
 
 

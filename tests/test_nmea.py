@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import gnss_worlds as gw
 import numpy as np
@@ -57,10 +57,20 @@ def _fix(lat, lon, alt, when, quality, sats, hdop, speed, course) -> GnssFix:
     valid = quality != 0
     used = sum(s.used for s in sats)
     return GnssFix(
-        stamp=0.0, lat=lat if valid else math.nan, lon=lon if valid else math.nan, alt=alt if valid else math.nan,
-        enu=np.zeros(3), quality=quality, num_sats=used, hdop=hdop if used >= 4 else math.nan,
-        vdop=1.5 * hdop if used >= 4 else math.nan, pdop=1.8 * hdop if used >= 4 else math.nan,
-        sats=tuple(sats), utc=when.isoformat(), speed_mps=speed, course_deg=course,
+        stamp=0.0,
+        lat=lat if valid else math.nan,
+        lon=lon if valid else math.nan,
+        alt=alt if valid else math.nan,
+        enu=np.zeros(3),
+        quality=quality,
+        num_sats=used,
+        hdop=hdop if used >= 4 else math.nan,
+        vdop=1.5 * hdop if used >= 4 else math.nan,
+        pdop=1.8 * hdop if used >= 4 else math.nan,
+        sats=tuple(sats),
+        utc=when.isoformat(),
+        speed_mps=speed,
+        course_deg=course,
     )
 
 
@@ -91,7 +101,7 @@ satellites = st.lists(
     course=st.floats(0.0, 359.99),
 )
 def test_round_trip_over_positions_times_and_satellites(lat, lon, alt, seconds, quality, sats, hdop, speed, course):
-    when = datetime(2024, 1, 1, tzinfo=timezone.utc) + timedelta(seconds=seconds)
+    when = datetime(2024, 1, 1, tzinfo=UTC) + timedelta(seconds=seconds)
     fix = _fix(lat, lon, alt, when, quality, sats, hdop, speed, course)
     lines = fix.nmea()
     back = nmea.parse_epoch(lines)

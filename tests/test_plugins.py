@@ -145,15 +145,25 @@ def test_riverbench_run_of_a_bad_plugin_exits_2_before_anything_runs(site, tmp_p
 
 def test_plugins_that_fail_inside_a_run_are_recorded_from_that_input_on_and_the_run_goes_on(installed, tmp_path):
     faulty = "plugin_faults:FailingEstimator"
-    scenario = validate({
-        "name": "faults", "world": "canal_lock", "world_params": {"buildings": False}, "stretch": {"start_s": 290.0, "end_s": 292.0},
-        "matchers": [{"id": "icp2d", "kind": "icp2d"}, {"id": "raises", "plugin": "plugin_faults:FailingMatcher"},
-                     {"id": "returns_none", "plugin": "plugin_faults:FailingMatcher", "params": {"how": "none"}}],
-        "estimators": [{"id": "complementary", "kind": "complementary", "matcher": "icp2d"},
-                       {"id": "match_raises", "plugin": faulty, "matcher": "icp2d"},
-                       {"id": "bad_verdict", "plugin": faulty, "matcher": "icp2d", "params": {"how": "add_fix"}},
-                       {"id": "unbuilt", "plugin": faulty, "matcher": "icp2d", "params": {"how": "init"}}],
-    })
+    scenario = validate(
+        {
+            "name": "faults",
+            "world": "canal_lock",
+            "world_params": {"buildings": False},
+            "stretch": {"start_s": 290.0, "end_s": 292.0},
+            "matchers": [
+                {"id": "icp2d", "kind": "icp2d"},
+                {"id": "raises", "plugin": "plugin_faults:FailingMatcher"},
+                {"id": "returns_none", "plugin": "plugin_faults:FailingMatcher", "params": {"how": "none"}},
+            ],
+            "estimators": [
+                {"id": "complementary", "kind": "complementary", "matcher": "icp2d"},
+                {"id": "match_raises", "plugin": faulty, "matcher": "icp2d"},
+                {"id": "bad_verdict", "plugin": faulty, "matcher": "icp2d", "params": {"how": "add_fix"}},
+                {"id": "unbuilt", "plugin": faulty, "matcher": "icp2d", "params": {"how": "init"}},
+            ],
+        }
+    )
     result = run(scenario, tmp_path / "run", workers=2, report=False)
     metrics = result.metrics
     assert metrics["run"]["scans"] == 20 and sorted(map(len, metrics["run"]["lanes"])) == [1, 2]  # both lanes ran plugins

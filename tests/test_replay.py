@@ -8,7 +8,7 @@ import dataclasses
 import math
 import shutil
 import struct
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 import pytest
@@ -39,17 +39,22 @@ def recorded(tmp_path_factory):
     GPS travel are given the true start pose, so that all of them have estimates over these 3 s."""
     root = tmp_path_factory.mktemp("replay")
     scenario = scenarios.load("canal_multipath", set=[STRETCH])
-    trajectory = sim.Trajectory(worlds.load(scenario.world, **scenario.world_params), seed=scenario.seed,
-                                **scenario.vessel.model_dump(exclude={"seed"}))
+    trajectory = sim.Trajectory(
+        worlds.load(scenario.world, **scenario.world_params), seed=scenario.seed, **scenario.vessel.model_dump(exclude={"seed"})
+    )
     pose = trajectory.pose(scenario.stretch.times(trajectory)[0])
     start = f"[{pose[0, 3]:.4f}, {pose[1, 3]:.4f}, {math.degrees(math.atan2(pose[1, 0], pose[0, 0])):.4f}]"
     scenario = scenarios.load("canal_multipath", set=[STRETCH, *(f"estimators.{e}.params.initial_pose={start}" for e in SMOOTHED)])
     run = scenarios.run(scenario, root / "run", workers=1, report=False)
     export(run.out_dir, "rosbag2", root / "bag")
     export(run.out_dir, "pcap", root / "run.pcap")
-    return {"root": root, "scenario": scenario, "run": run.out_dir,
-            "bag": replay(root / "bag", scenario, root / "replay-bag", workers=1, report=True),
-            "pcap": replay(root / "run.pcap", scenario, root / "replay-pcap", workers=1, report=False)}
+    return {
+        "root": root,
+        "scenario": scenario,
+        "run": run.out_dir,
+        "bag": replay(root / "bag", scenario, root / "replay-bag", workers=1, report=True),
+        "pcap": replay(root / "run.pcap", scenario, root / "replay-pcap", workers=1, report=False),
+    }
 
 
 def tum(path) -> np.ndarray:
@@ -91,8 +96,20 @@ def test_bag_replay_gives_the_simulated_estimates(recorded):
         # chained from the truth in simulation, from the first estimate here: the same odometry (rounded at other digits)
         np.testing.assert_allclose(odometry(got), odometry(want), rtol=0, atol=2e-6)
     sim_fixes, replay_fixes = read_csv(run / "gps.csv"), read_csv(out / "gps.csv")
-    for column in ("t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop",
-                   *(f"{e}.trusted" for e in estimators), *(f"{e}.statistic" for e in estimators if e != "ekf")):
+    for column in (
+        "t",
+        "quality",
+        "e",
+        "n",
+        "u",
+        "lat",
+        "lon",
+        "alt",
+        "num_sats",
+        "hdop",
+        *(f"{e}.trusted" for e in estimators),
+        *(f"{e}.statistic" for e in estimators if e != "ekf"),
+    ):
         np.testing.assert_array_equal(replay_fixes[column], sim_fixes[column], err_msg=column)
     # the ekf's C/N0 monitor reads GSV's whole dB-Hz and degrees: the same verdicts, a statistic a little off
     np.testing.assert_allclose(replay_fixes["ekf.statistic"], sim_fixes["ekf.statistic"], rtol=0, atol=1.5)
@@ -130,8 +147,16 @@ def test_run_directory_holds_no_truth(recorded):
     result = recorded["bag"]
     estimators, matchers = ids(recorded["scenario"])
     names = {p.name for p in result.out_dir.iterdir()}
-    assert names == {"scenario.toml", "metrics.json", "gps.csv", "gps.nmea", "report.md", "report.html", "plots",
-                     *(f"{k}.tum" for k in estimators + matchers)}
+    assert names == {
+        "scenario.toml",
+        "metrics.json",
+        "gps.csv",
+        "gps.nmea",
+        "report.md",
+        "report.html",
+        "plots",
+        *(f"{k}.tum" for k in estimators + matchers),
+    }
     assert not (recorded["pcap"].out_dir / "report.md").exists()
     assert not [p for p in recorded["root"].iterdir() if p.name.startswith(".")]
     m = result.metrics
@@ -194,8 +219,13 @@ def test_bad_input_is_one_line_and_writes_nothing(recorded, tmp_path):
     (tmp_path / "full" / "x").touch()
     (tmp_path / "header.pcap").write_bytes(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1))
     shutil.copy(recorded["root"] / "run.pcap", tmp_path / "copy.pcap")
-    cases = [("missing", None, "no such bag"), ("notes.txt", None, "not a readable bag"), ("empty", None, "not a readable bag"),
-             ("header.pcap", None, "no Velodyne data packets"), ("copy.pcap", "/velodyne_points", "a pcap has no topics")]
+    cases = [
+        ("missing", None, "no such bag"),
+        ("notes.txt", None, "not a readable bag"),
+        ("empty", None, "not a readable bag"),
+        ("header.pcap", None, "no Velodyne data packets"),
+        ("copy.pcap", "/velodyne_points", "a pcap has no topics"),
+    ]
     before = set(tmp_path.iterdir())
     for name, topic, message in cases:
         with pytest.raises(ValueError, match=message) as error:
@@ -228,8 +258,16 @@ def cloud(points: np.ndarray, ns: int = 5_000_000_000):
     kinds = {"f4": 7, "f8": 8, "u2": 4, "u4": 6, "u1": 2}
     fields = [field(name=n, offset=o, datatype=kinds[dt.str[1:]], count=1) for n, (dt, o) in points.dtype.fields.items()]
     return store.types["sensor_msgs/msg/PointCloud2"](
-        header=header(store, ns, "lidar"), height=1, width=len(points), fields=fields, is_bigendian=False,
-        point_step=points.dtype.itemsize, row_step=points.dtype.itemsize * len(points), data=points.view(np.uint8), is_dense=True)
+        header=header(store, ns, "lidar"),
+        height=1,
+        width=len(points),
+        fields=fields,
+        is_bigendian=False,
+        point_step=points.dtype.itemsize,
+        row_step=points.dtype.itemsize * len(points),
+        data=points.view(np.uint8),
+        is_dense=True,
+    )
 
 
 def test_cloud_field_variants():
@@ -256,13 +294,27 @@ def test_cloud_field_variants():
 
 def test_nmea_and_rmc_read_back():
     origin = (42.3539, -71.1106, 5.0)
-    epoch = datetime(2024, 6, 15, 14, tzinfo=timezone.utc)
+    epoch = datetime(2024, 6, 15, 14, tzinfo=UTC)
     geo = Geo.choose(Place(origin, epoch), unix_ns(epoch) + 5_000_000_000, None)
     enu = np.array([120.0, -35.0, 12.0])
     lat, lon, alt = LocalFrame.at(*origin).geodetic_of_enu(enu)
     sats = (SatelliteReport(3, 120.4, 35.6, 44.3, True), SatelliteReport(7, 250.0, 12.2, 0.0, False))
-    fix = GnssFix(stamp=12.5, lat=lat, lon=lon, alt=alt, enu=enu, quality=1, num_sats=1, hdop=0.876, vdop=1.234, pdop=1.5, sats=sats,
-                  utc="2024-06-15T14:00:12.500000+00:00", speed_mps=2.0, course_deg=90.0)
+    fix = GnssFix(
+        stamp=12.5,
+        lat=lat,
+        lon=lon,
+        alt=alt,
+        enu=enu,
+        quality=1,
+        num_sats=1,
+        hdop=0.876,
+        vdop=1.234,
+        pdop=1.5,
+        sats=sats,
+        utc="2024-06-15T14:00:12.500000+00:00",
+        speed_mps=2.0,
+        course_deg=90.0,
+    )
     got = fixes.from_nmea(12.5, fix.nmea(), geo)
     assert got.quality == 1 and got.num_sats == 1 and got.hdop == 0.88 and got.vdop == 1.23 and got.truth is None
     assert np.abs(got.enu - enu).max() < 0.015 and got.course_deg == 90.0 and abs(got.speed_mps - 2.0) < 1e-3
@@ -283,11 +335,11 @@ def fixes_later(fix: GnssFix) -> GnssFix:
 
 
 def test_time_base_and_origin_rules():
-    epoch = datetime(2024, 6, 15, 14, tzinfo=timezone.utc)
+    epoch = datetime(2024, 6, 15, 14, tzinfo=UTC)
     place = Place((42.3539, -71.1106, 5.0), epoch)
     near = Geo.choose(place, unix_ns(epoch) + 3_000_000_000, (42.36, -71.10, 3.0))
     assert near.zero_ns == unix_ns(epoch) and near.origin_source == "world" and near.seconds(unix_ns(epoch) + 1_500_000_000) == 1.5
-    later = datetime(2025, 3, 1, 9, tzinfo=timezone.utc)
+    later = datetime(2025, 3, 1, 9, tzinfo=UTC)
     far = Geo.choose(place, unix_ns(later), (48.85, 2.35, 35.0))
     assert far.zero_ns == unix_ns(later) and far.origin == (48.85, 2.35, 35.0) and far.origin_source == "first fix"
     assert np.abs(far.enu(48.85, 2.35, 35.0)).max() < 1e-6
@@ -301,11 +353,18 @@ def test_the_replay_command_writes_a_run_directory_and_refuses_bad_input_in_one_
 
     export("canal_multipath", "mcap", tmp_path / "bag", set=["stretch={start_s = 60.0, end_s = 61.0}"])
     cli = [sys.executable, "-m", "scenarios.cli", "replay"]
-    ok = subprocess.run([*cli, "bag", "--scenario", "canal_multipath", "--out", "run", "--quiet", "--no-report"],
-                        cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    ok = subprocess.run(
+        [*cli, "bag", "--scenario", "canal_multipath", "--out", "run", "--quiet", "--no-report"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert ok.returncode == 0, ok.stderr
     assert "replayed 10 scans" in ok.stdout and (tmp_path / "run" / "gicp.tum").exists()
-    for args, message in ((["nothing", "--scenario", "canal_multipath"], "no such bag or pcap"),
-                          (["bag", "--scenario", "canal_multipath", "--lidar-topic", "/x"], "/x")):
+    for args, message in (
+        (["nothing", "--scenario", "canal_multipath"], "no such bag or pcap"),
+        (["bag", "--scenario", "canal_multipath", "--lidar-topic", "/x"], "/x"),
+    ):
         bad = subprocess.run([*cli, *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1

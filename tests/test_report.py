@@ -23,8 +23,13 @@ OFFSET_M = 1.0
 
 def stats(values) -> dict:
     v = np.asarray(values, dtype=float)
-    return {"rmse": float(np.sqrt(np.mean(v**2))), "mean": float(v.mean()), "median": float(np.median(v)),
-            "p95": float(np.percentile(v, 95)), "max": float(v.max())}
+    return {
+        "rmse": float(np.sqrt(np.mean(v**2))),
+        "mean": float(v.mean()),
+        "median": float(np.median(v)),
+        "p95": float(np.percentile(v, 95)),
+        "max": float(v.max()),
+    }
 
 
 def write_tum(path, t, x, y, yaw) -> None:
@@ -66,47 +71,177 @@ def make_run(run_dir, scans: int = 400) -> dict:
         nlos = int(k % 17 == 0)
         pos = ["", "", ""] if quality == 0 else [f"{x[2 * k] + err[0]:.3f}", f"{y[2 * k] + err[1]:.3f}", "2.000"]
         errs = ["", "", "", ""] if quality == 0 else [f"{err[0]:.3f}", f"{err[1]:.3f}", "0.500", f"{np.hypot(*err):.3f}"]
-        gps_rows.append([f"{ft:.3f}", quality, *pos, "", "", "", 8, "" if quality == 0 else "1.20", *errs, "1.000",
-                         "" if quality == 0 else "0.300", nlos, 1, "0.0000", int(quality == 1), "1.5000"])
-    write_csv(run_dir / "gps.csv", ["t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop", "err_e", "err_n", "err_u",
-                                    "err_h", "open_sky_err_h", "added_err_h", "nlos_used", "gps_only.trusted", "gps_only.statistic",
-                                    "ekf.trusted", "ekf.statistic"], gps_rows)
+        gps_rows.append(
+            [
+                f"{ft:.3f}",
+                quality,
+                *pos,
+                "",
+                "",
+                "",
+                8,
+                "" if quality == 0 else "1.20",
+                *errs,
+                "1.000",
+                "" if quality == 0 else "0.300",
+                nlos,
+                1,
+                "0.0000",
+                int(quality == 1),
+                "1.5000",
+            ]
+        )
+    write_csv(
+        run_dir / "gps.csv",
+        [
+            "t",
+            "quality",
+            "e",
+            "n",
+            "u",
+            "lat",
+            "lon",
+            "alt",
+            "num_sats",
+            "hdop",
+            "err_e",
+            "err_n",
+            "err_u",
+            "err_h",
+            "open_sky_err_h",
+            "added_err_h",
+            "nlos_used",
+            "gps_only.trusted",
+            "gps_only.statistic",
+            "ekf.trusted",
+            "ekf.statistic",
+        ],
+        gps_rows,
+    )
     keys = ("max_error", "entry_error", "exit_error", "added", "recover_s")
-    write_csv(run_dir / "windows.csv", ["kind", "start", "end", "duration"] + [f"{e}.{k}" for e in ("gps_only", "ekf") for k in keys],
-              [["blackout", *BLACKOUT, BLACKOUT[1] - BLACKOUT[0], f"{gps_only_error.max():.3f}", "0.000", f"{gps_only_error.max():.3f}", "19.800", "0.100",
-                "1.000", "1.000", "1.000", "0.000", "0.000"],
-               ["reacquisition", BLACKOUT[1], BLACKOUT[1] + 1.0, 1.0, "", "", "", "", "", "1.000", "1.000", "1.000", "0.000", ""]])
-    scan_rows = [[f"{t[i]:.3f}", f"{x[i]:.3f}", f"{y[i]:.3f}", "0.000", f"{math.degrees(HEADING):.3f}", int(i > 0 and i % 50 != 7),
-                  int(i % 50 == 7), int(100 <= i < 120), 5000 + 10 * (i % 30), "12.00"] for i in range(scans)]
+    write_csv(
+        run_dir / "windows.csv",
+        ["kind", "start", "end", "duration"] + [f"{e}.{k}" for e in ("gps_only", "ekf") for k in keys],
+        [
+            [
+                "blackout",
+                *BLACKOUT,
+                BLACKOUT[1] - BLACKOUT[0],
+                f"{gps_only_error.max():.3f}",
+                "0.000",
+                f"{gps_only_error.max():.3f}",
+                "19.800",
+                "0.100",
+                "1.000",
+                "1.000",
+                "1.000",
+                "0.000",
+                "0.000",
+            ],
+            ["reacquisition", BLACKOUT[1], BLACKOUT[1] + 1.0, 1.0, "", "", "", "", "", "1.000", "1.000", "1.000", "0.000", ""],
+        ],
+    )
+    scan_rows = [
+        [
+            f"{t[i]:.3f}",
+            f"{x[i]:.3f}",
+            f"{y[i]:.3f}",
+            "0.000",
+            f"{math.degrees(HEADING):.3f}",
+            int(i > 0 and i % 50 != 7),
+            int(i % 50 == 7),
+            int(100 <= i < 120),
+            5000 + 10 * (i % 30),
+            "12.00",
+        ]
+        for i in range(scans)
+    ]
     write_csv(run_dir / "scans.csv", ["t", "x", "y", "z", "yaw_deg", "icp.ok", "icp.gated", "icp.degenerate", "icp.points", "icp.ms"], scan_rows)
-    (run_dir / "scenario.toml").write_text('name = "synthetic"\ndescription = "a straight line with one bridge"\nseed = 3\n'
-                                           'world = "charles_river"\n\n[stretch]\nstart_s = 100.0\nend_s = 140.0\n\n'
-                                           '[[estimators]]\nid = "gps_only"\nkind = "gps_only"\nmonitor = "none"\n\n'
-                                           '[[estimators]]\nid = "ekf"\nkind = "ekf"\nmonitor = "hdop"\n\n[estimators.monitor_params]\nmax_hdop = 2.0\n')
-    window = {"count": 1, "seconds": 10.0, "max_error": float(gps_only_error.max()), "exit_error": 19.8, "added": 19.8, "recover_s": 0.1, "recovered": 1.0}
+    (run_dir / "scenario.toml").write_text(
+        'name = "synthetic"\ndescription = "a straight line with one bridge"\nseed = 3\n'
+        'world = "charles_river"\n\n[stretch]\nstart_s = 100.0\nend_s = 140.0\n\n'
+        '[[estimators]]\nid = "gps_only"\nkind = "gps_only"\nmonitor = "none"\n\n'
+        '[[estimators]]\nid = "ekf"\nkind = "ekf"\nmonitor = "hdop"\n\n[estimators.monitor_params]\nmax_hdop = 2.0\n'
+    )
+    window = {
+        "count": 1,
+        "seconds": 10.0,
+        "max_error": float(gps_only_error.max()),
+        "exit_error": 19.8,
+        "added": 19.8,
+        "recover_s": 0.1,
+        "recovered": 1.0,
+    }
     no_window = {"count": 0, "seconds": 0.0, "max_error": None, "exit_error": None, "added": None, "recover_s": None, "recovered": None}
     monitor = {"faulty": 0, "precision": None, "recall": 0.0, "false_alarm_rate": 0.02, "recall_at_5pct_fa": 0.0}
 
     def estimator(error, windows):
-        return {"available": 1.0, "ape": stats(error), "rpe_10m": {**stats(error), "pairs": 10, "percent": 1.0},
-                "rpe_100m": {**stats(error), "pairs": 5, "percent": 1.0}, "yaw": stats([0.5, 0.5]),
-                "windows": {"blackout": windows, "nlos": no_window, "reacquisition": no_window, "injected": no_window},
-                "monitor": {"error_5m": monitor, "added_5m": monitor}, "failed": False}
+        return {
+            "available": 1.0,
+            "ape": stats(error),
+            "rpe_10m": {**stats(error), "pairs": 10, "percent": 1.0},
+            "rpe_100m": {**stats(error), "pairs": 5, "percent": 1.0},
+            "yaw": stats([0.5, 0.5]),
+            "windows": {"blackout": windows, "nlos": no_window, "reacquisition": no_window, "injected": no_window},
+            "monitor": {"error_5m": monitor, "added_5m": monitor},
+            "failed": False,
+        }
 
     metrics = {
-        "run": {"scenario": "synthetic", "scenario_hash": "0123456789abcdef", "seed": 3, "t_start": float(t[0]), "t_end": float(t[-1]),
-                "sim_s": float(t[-1] - t[0]), "wall_s": 4.0, "realtime_factor": 10.0, "peak_rss_mb": 300.0, "scans": scans,
-                "fixes": len(fix_t), "workers": 2, "lanes": [], "failures": [{"component": "matcher", "id": "icp", "stamp": 130.0, "reason": "boom"}]},
-        "gps": {"fixes": len(fix_t), "availability": 0.75, "valid": 0.75, "blackout": 0.25, "nlos_share": 0.06, "error": stats([1.0, 2.0]),
-                "open_sky_error": stats([1.0]), "added_error": stats([0.3]), "hdop_median": 1.2, "faulty_5m": None},
+        "run": {
+            "scenario": "synthetic",
+            "scenario_hash": "0123456789abcdef",
+            "seed": 3,
+            "t_start": float(t[0]),
+            "t_end": float(t[-1]),
+            "sim_s": float(t[-1] - t[0]),
+            "wall_s": 4.0,
+            "realtime_factor": 10.0,
+            "peak_rss_mb": 300.0,
+            "scans": scans,
+            "fixes": len(fix_t),
+            "workers": 2,
+            "lanes": [],
+            "failures": [{"component": "matcher", "id": "icp", "stamp": 130.0, "reason": "boom"}],
+        },
+        "gps": {
+            "fixes": len(fix_t),
+            "availability": 0.75,
+            "valid": 0.75,
+            "blackout": 0.25,
+            "nlos_share": 0.06,
+            "error": stats([1.0, 2.0]),
+            "open_sky_error": stats([1.0]),
+            "added_error": stats([0.3]),
+            "hdop_median": 1.2,
+            "faulty_5m": None,
+        },
         "estimators": {"gps_only": estimator(gps_only_error, window), "ekf": estimator(np.full(scans - 10, OFFSET_M), {**window, "max_error": 1.0})},
-        "matchers": {"icp": {"success": 0.97, "gated": 0.02, "degenerate": 0.05, "hz": 80.0, "ms": {"median": 12.0, "p95": 13.0},
-                             "points": {"median": 5150.0, "p10": 5000.0, "p90": 5290.0}, "ape": stats([0.5]), "ape_aligned": stats([0.2]),
-                             "rpe_10m": stats([0.1]), "rpe_100m": stats([1.0]), "yaw": stats([1.0]), "failed": True, "failed_at": 130.0}},
+        "matchers": {
+            "icp": {
+                "success": 0.97,
+                "gated": 0.02,
+                "degenerate": 0.05,
+                "hz": 80.0,
+                "ms": {"median": 12.0, "p95": 13.0},
+                "points": {"median": 5150.0, "p10": 5000.0, "p90": 5290.0},
+                "ape": stats([0.5]),
+                "ape_aligned": stats([0.2]),
+                "rpe_10m": stats([0.1]),
+                "rpe_100m": stats([1.0]),
+                "yaw": stats([1.0]),
+                "failed": True,
+                "failed_at": 130.0,
+            }
+        },
         "expectations": [
             {"expect": "estimators.ekf.ape.p95 < 6", "value": 1.0, "pass": True, "reason": ""},
-            {"expect": "estimators.gps_only.ape.max < 5", "value": float(gps_only_error.max()), "pass": False,
-             "reason": f"estimators.gps_only.ape.max = {gps_only_error.max():.4g}, expected < 5"},
+            {
+                "expect": "estimators.gps_only.ape.max < 5",
+                "value": float(gps_only_error.max()),
+                "pass": False,
+                "reason": f"estimators.gps_only.ape.max = {gps_only_error.max():.4g}, expected < 5",
+            },
         ],
     }
     (run_dir / "metrics.json").write_text(json.dumps(metrics, indent=2))

@@ -18,7 +18,8 @@ def test_generated_tables_are_those_of_the_committed_baseline():
     script = _results_script()
     for path, text in script.generated().items():
         assert path.read_text(encoding="utf-8") == text, (
-            f"{path.relative_to(ROOT)} is not what benchmarks/baseline/library.json gives: run `python benchmarks/results.py`")
+            f"{path.relative_to(ROOT)} is not what benchmarks/baseline/library.json gives: run `python benchmarks/results.py`"
+        )
 
 
 def test_the_generated_tables_are_stamped_with_the_baselines_commit_and_date():

@@ -141,10 +141,12 @@ def test_each_switch_turns_its_parts_off_and_densities_scale(canal):
     assert "moored_boat" not in kinds_of(worlds.load("canal_lock", moored_boats=False, use_cache=False))
     dense = worlds.load("canal_lock", tree_density=2.0, mooring_density=2.0, use_cache=False)
     assert 1.6 < len(dense.crowns) / len(canal.crowns) < 2.4
-    boats = lambda w: sum(len(p.mesh.faces) for p in w.parts_of_kind("moored_boat"))  # noqa: E731
+    boats = lambda w: sum(len(p.mesh.faces) for p in w.parts_of_kind("moored_boat"))
     assert boats(dense) > boats(canal)
-    keys = {cache.key("canal_lock", worlds.resolve_params("canal_lock", **kw)) for kw in
-            ({}, {"vegetation": False}, {"docks": False}, {"moored_boats": False}, {"tree_density": 2.0})}
+    keys = {
+        cache.key("canal_lock", worlds.resolve_params("canal_lock", **kw))
+        for kw in ({}, {"vegetation": False}, {"docks": False}, {"moored_boats": False}, {"tree_density": 2.0})
+    }
     assert len(keys) == 5
 
 

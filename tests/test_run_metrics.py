@@ -46,8 +46,11 @@ def line(n: int, step: float = 0.5, y: float = 0.0) -> np.ndarray:
 
 def arc(n: int, radius: float = 50.0, dtheta: float = 0.01) -> np.ndarray:
     """n poses on a circle about the origin, heading along the tangent (counter-clockwise)."""
-    return track([radius * math.cos(dtheta * i) for i in range(n)], [radius * math.sin(dtheta * i) for i in range(n)],
-                 [dtheta * i + math.pi / 2 for i in range(n)])
+    return track(
+        [radius * math.cos(dtheta * i) for i in range(n)],
+        [radius * math.sin(dtheta * i) for i in range(n)],
+        [dtheta * i + math.pi / 2 for i in range(n)],
+    )
 
 
 def rigid(angle: float, tx: float, ty: float) -> np.ndarray:
@@ -62,8 +65,13 @@ def hand_stats(values) -> dict:
     rank = 0.95 * (n - 1)
     lo = int(math.floor(rank))
     hi = min(lo + 1, n - 1)
-    return {"rmse": math.sqrt(sum(x * x for x in v) / n), "mean": sum(v) / n, "median": median,
-            "p95": v[lo] + (rank - lo) * (v[hi] - v[lo]), "max": v[-1]}
+    return {
+        "rmse": math.sqrt(sum(x * x for x in v) / n),
+        "mean": sum(v) / n,
+        "median": median,
+        "p95": v[lo] + (rank - lo) * (v[hi] - v[lo]),
+        "max": v[-1],
+    }
 
 
 def assert_stats(got: dict, expected: dict, abs_tol: float = 1e-9) -> None:
@@ -77,9 +85,16 @@ def fix_table(t, quality=None, error=None, open_sky=None, nlos=None, trusted=Non
     error = np.zeros((n, 3)) if error is None else np.asarray(error, dtype=float)
     open_sky = np.zeros((n, 3)) if open_sky is None else np.asarray(open_sky, dtype=float)
     return FixTable(
-        t=np.asarray(t, dtype=float), quality=quality, enu=np.zeros((n, 3)), lat=np.zeros(n), lon=np.zeros(n),
-        alt=np.zeros(n), num_sats=np.full(n, 8), hdop=np.ones(n) if hdop is None else np.asarray(hdop, dtype=float),
-        error=error, open_sky_error=open_sky,
+        t=np.asarray(t, dtype=float),
+        quality=quality,
+        enu=np.zeros((n, 3)),
+        lat=np.zeros(n),
+        lon=np.zeros(n),
+        alt=np.zeros(n),
+        num_sats=np.full(n, 8),
+        hdop=np.ones(n) if hdop is None else np.asarray(hdop, dtype=float),
+        error=error,
+        open_sky_error=open_sky,
         nlos_used=np.zeros(n, dtype=bool) if nlos is None else np.asarray(nlos, dtype=bool),
         trusted={k: np.asarray(v, dtype=bool) for k, v in (trusted or {}).items()},
         statistic={k: np.asarray(v, dtype=float) for k, v in (statistic or {}).items()},
@@ -91,9 +106,9 @@ def run_record(truth, estimates=None, matches=None, fixes=None, t=None) -> RunRe
     estimates = estimates or {}
     if fixes is None:
         fixes = fix_table(np.zeros(0), trusted={e: [] for e in estimates}, statistic={e: [] for e in estimates})
-    return RunRecord(scan_t=np.arange(n) / 10 if t is None else np.asarray(t, dtype=float), truth=truth,
-                     estimates=estimates,
-                     matches=matches or {}, fixes=fixes)
+    return RunRecord(
+        scan_t=np.arange(n) / 10 if t is None else np.asarray(t, dtype=float), truth=truth, estimates=estimates, matches=matches or {}, fixes=fixes
+    )
 
 
 def estimator(truth, est, windows=()) -> dict:
@@ -251,8 +266,7 @@ def test_rpe_on_a_curve_with_a_turning_offset_matches_a_loop():
 
 
 @FAST
-@given(dx=st.floats(-100, 100), dy=st.floats(-100, 100), heading=st.floats(-math.pi, math.pi),
-       speed=st.floats(0.2, 3.0))
+@given(dx=st.floats(-100, 100), dy=st.floats(-100, 100), heading=st.floats(-math.pi, math.pi), speed=st.floats(0.2, 3.0))
 def test_rpe_of_random_constant_offset_is_zero(dx, dy, heading, speed):
     n = 80
     truth = track([speed * i * math.cos(heading) for i in range(n)], [speed * i * math.sin(heading) for i in range(n)], [heading] * n)
@@ -287,11 +301,14 @@ def test_yaw_error_is_the_shortest_angle_for_random_angles(a, b):
 
 def matcher_track(pose_, ok=None, gated=None, degenerate=None, points=None, seconds=None) -> MatcherTrack:
     n = len(pose_)
-    return MatcherTrack(ok=np.ones(n, bool) if ok is None else np.asarray(ok, bool),
-                        gated=np.zeros(n, bool) if gated is None else np.asarray(gated, bool),
-                        degenerate=np.zeros(n, bool) if degenerate is None else np.asarray(degenerate, bool),
-                        points=np.full(n, 1000) if points is None else np.asarray(points, int),
-                        seconds=np.full(n, 0.05) if seconds is None else np.asarray(seconds, float), pose=pose_)
+    return MatcherTrack(
+        ok=np.ones(n, bool) if ok is None else np.asarray(ok, bool),
+        gated=np.zeros(n, bool) if gated is None else np.asarray(gated, bool),
+        degenerate=np.zeros(n, bool) if degenerate is None else np.asarray(degenerate, bool),
+        points=np.full(n, 1000) if points is None else np.asarray(points, int),
+        seconds=np.full(n, 0.05) if seconds is None else np.asarray(seconds, float),
+        pose=pose_,
+    )
 
 
 def test_align_se2_removes_a_rigid_motion_of_the_whole_track():
@@ -324,7 +341,7 @@ def test_align_se2_best_fit_beats_any_nearby_motion():
     odom = np.array([rigid(0.4, -7.0, 2.0) @ p for p in truth])
     odom[:, :2, 3] += rng.normal(0.0, 0.5, (80, 2))
     aligned = metrics.align_se2(odom, truth)
-    sse = lambda est: sum((est[i, 0, 3] - truth[i, 0, 3]) ** 2 + (est[i, 1, 3] - truth[i, 1, 3]) ** 2 for i in range(80))  # noqa: E731
+    sse = lambda est: sum((est[i, 0, 3] - truth[i, 0, 3]) ** 2 + (est[i, 1, 3] - truth[i, 1, 3]) ** 2 for i in range(80))
     best = sse(aligned)
     centre = aligned[:, :2, 3].mean(axis=0)
     about = pose(centre[0], centre[1], 0.0)
@@ -368,8 +385,10 @@ def test_matcher_counters_success_gated_degenerate_hz_points():
 def test_matcher_failure_is_reported_with_its_stamp():
     truth = line(5)
     rec = run_record(truth, matches={"m": matcher_track(truth)})
-    rec.failures = [{"component": "matcher", "id": "other", "stamp": 0.1, "reason": "x"},
-                    {"component": "matcher", "id": "m", "stamp": 0.3, "reason": "worker died"}]
+    rec.failures = [
+        {"component": "matcher", "id": "other", "stamp": 0.1, "reason": "x"},
+        {"component": "matcher", "id": "m", "stamp": 0.3, "reason": "worker died"},
+    ]
     out = metrics.matcher_metrics(rec, "m")
     assert out["failed"] is True and out["failed_at"] == 0.3
 
@@ -740,8 +759,9 @@ def test_tum_files_read_by_evo_give_our_ape_and_yaw_error(tmp_path):
     n = 600
     truth = arc(n, radius=60.0, dtheta=0.005)
     i = np.arange(n)
-    est = track(truth[:, 0, 3] + 1.5 * np.sin(i / 40.0), truth[:, 1, 3] + 0.8 * np.cos(i / 25.0),
-                metrics.yaw_of(truth) + np.radians(3.0) * np.sin(i / 60.0))
+    est = track(
+        truth[:, 0, 3] + 1.5 * np.sin(i / 40.0), truth[:, 1, 3] + 0.8 * np.cos(i / 25.0), metrics.yaw_of(truth) + np.radians(3.0) * np.sin(i / 60.0)
+    )
     est[:50] = np.nan  # before initialisation: no rows
     t = i / 10.0
     files.write_tum(tmp_path / "groundtruth.tum", t, truth)
@@ -751,8 +771,7 @@ def test_tum_files_read_by_evo_give_our_ape_and_yaw_error(tmp_path):
     assert reference.num_poses == n and estimate.num_poses == n - 50
     reference.reduce_to_ids(np.arange(50, n))  # evo's sync.associate_trajectories does the same by stamps
     ours = metrics.estimator_metrics(run_record(truth, {"e": est}, t=t), "e", [])
-    for relation, key, unit in ((evo_metrics.PoseRelation.translation_part, "ape", 1e-5),
-                                (evo_metrics.PoseRelation.rotation_angle_deg, "yaw", 1e-4)):
+    for relation, key, unit in ((evo_metrics.PoseRelation.translation_part, "ape", 1e-5), (evo_metrics.PoseRelation.rotation_angle_deg, "yaw", 1e-4)):
         ape = evo_metrics.APE(relation)
         ape.process_data((reference, estimate))
         theirs = ape.get_all_statistics()
@@ -761,8 +780,12 @@ def test_tum_files_read_by_evo_give_our_ape_and_yaw_error(tmp_path):
 
 
 def test_json_safe():
-    tree = {"a": np.float64("nan"), "b": [float("inf"), -np.inf, np.float32(1.5)], "c": (np.int64(3), np.bool_(True)),
-            "d": {"e": 2.5, "f": "x", "g": None, "h": 7}}
+    tree = {
+        "a": np.float64("nan"),
+        "b": [float("inf"), -np.inf, np.float32(1.5)],
+        "c": (np.int64(3), np.bool_(True)),
+        "d": {"e": 2.5, "f": "x", "g": None, "h": 7},
+    }
     out = metrics.json_safe(tree)
     assert out == {"a": None, "b": [None, None, 1.5], "c": [3, True], "d": {"e": 2.5, "f": "x", "g": None, "h": 7}}
     assert type(out["b"][2]) is float and type(out["c"][0]) is int and type(out["c"][1]) is bool
@@ -778,8 +801,9 @@ def test_compute_tree_is_json_safe():
     rec = run_record(truth, {"e": est}, {"m": matcher_track(truth)}, fixes=fixes)
     from scenarios.score import vessel_log
 
-    tree = metrics.compute(rec, win.find(fixes, [], 0.2), {"scenario": "x", "seed": np.int64(1)},
-                           vessel_log.metrics(vessel_log.VesselLog(), 3.0, 0.1))
+    tree = metrics.compute(
+        rec, win.find(fixes, [], 0.2), {"scenario": "x", "seed": np.int64(1)}, vessel_log.metrics(vessel_log.VesselLog(), 3.0, 0.1)
+    )
     text = json.dumps(metrics.json_safe(tree), allow_nan=False)
     back = json.loads(text)
     assert back["vessel"]["outcome"] == "interrupted" and back["vessel"]["min_clearance_m"] is None

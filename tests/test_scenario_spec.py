@@ -83,8 +83,11 @@ def test_set_reaches_list_items_by_id_and_index_and_reports_a_missing_one():
         scenarios.load("quickstart", set=["lidar.range_noise_m"])
 
 
-@given(st.one_of(st.integers(-10**6, 10**6), st.floats(allow_nan=False, allow_infinity=False), st.booleans(),
-                 st.lists(st.integers(-100, 100), max_size=4)))
+@given(
+    st.one_of(
+        st.integers(-(10**6), 10**6), st.floats(allow_nan=False, allow_infinity=False), st.booleans(), st.lists(st.integers(-100, 100), max_size=4)
+    )
+)
 def test_set_values_are_typed_as_toml(value):
     text = tomli_w.dumps({"v": value}).split("=", 1)[1].strip()
     assert overrides.apply({}, [f"a.b={text}"]) == {"a": {"b": value}}
@@ -140,14 +143,18 @@ def test_schema_types_every_section_and_each_kinds_params():
     for name in scenarios.available():  # the library files as written, and resolved with every default
         check.validate(tomllib.loads(path_of(name).read_text()))
         check.validate(scenarios.load(name).resolved())
-    good = {"matchers": [{"id": "g", "kind": "gicp", "params": {"voxel_m": 0.5}}],
-            "estimators": [{"id": "e", "kind": "ekf", "monitor": "cn0", "monitor_params": {}}]}
+    good = {
+        "matchers": [{"id": "g", "kind": "gicp", "params": {"voxel_m": 0.5}}],
+        "estimators": [{"id": "e", "kind": "ekf", "monitor": "cn0", "monitor_params": {}}],
+    }
     check.validate(good)
-    wrong = [({"id": "g", "kind": "gicp", "params": {"voxel": 0.5}}, None),  # a typo: not a gicp key
-             ({"id": "g", "kind": "gicp", "params": {"voxel_m": "fine"}}, None),
-             ({"id": "g", "kind": "icp"}, None),
-             (None, {"id": "e", "kind": "ekf", "params": {"monitor": "cn0"}}),  # set on the estimator, not its params
-             (None, {"id": "e", "kind": "pf", "monitor": "cn0", "monitor_params": {"gate_sigma": "high"}})]
+    wrong = [
+        ({"id": "g", "kind": "gicp", "params": {"voxel": 0.5}}, None),  # a typo: not a gicp key
+        ({"id": "g", "kind": "gicp", "params": {"voxel_m": "fine"}}, None),
+        ({"id": "g", "kind": "icp"}, None),
+        (None, {"id": "e", "kind": "ekf", "params": {"monitor": "cn0"}}),  # set on the estimator, not its params
+        (None, {"id": "e", "kind": "pf", "monitor": "cn0", "monitor_params": {"gate_sigma": "high"}}),
+    ]
     for bad_matcher, bad_estimator in wrong:
         data = {"matchers": [bad_matcher or good["matchers"][0]], "estimators": [bad_estimator or good["estimators"][0]]}
         assert not check.is_valid(data), data

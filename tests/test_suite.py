@@ -25,12 +25,30 @@ CI_SEEDS = 3
 @pytest.mark.slow  # ~15 min: the library's fast variants on 3 seeds, judged metric by metric against the committed baseline
 def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
     junit = tmp_path / "suite.xml"
-    result = runner.invoke(app, ["suite", "--baseline", str(BASELINE), "--seeds", str(CI_SEEDS), "--workers", "2",
-                                 "--junit", str(junit), "--out", str(tmp_path / "runs"), "--quiet"])
+    result = runner.invoke(
+        app,
+        [
+            "suite",
+            "--baseline",
+            str(BASELINE),
+            "--seeds",
+            str(CI_SEEDS),
+            "--workers",
+            "2",
+            "--junit",
+            str(junit),
+            "--out",
+            str(tmp_path / "runs"),
+            "--quiet",
+        ],
+    )
     summary = json.loads((tmp_path / "runs" / "suite.json").read_text())
     comparison = summary["baseline_comparison"]
-    moved = [f"{m['scenario']} {m['metric']}: {m['verdict']} {m['baseline_median']} -> {m['now_median']}"
-             for m in comparison["metrics"] if m["verdict"] in ("regressed", "improved") and m["gating"]]
+    moved = [
+        f"{m['scenario']} {m['metric']}: {m['verdict']} {m['baseline_median']} -> {m['now_median']}"
+        for m in comparison["metrics"]
+        if m["verdict"] in ("regressed", "improved") and m["gating"]
+    ]
     # an improvement not recorded in the baseline would let a later regression of the same size pass: refresh it
     # (`riverbench suite --fast --save-baseline benchmarks/baseline/library.json`) in a commit naming the cause
     assert result.exit_code == 0 and not moved, result.output + "\n".join(moved)
@@ -47,8 +65,10 @@ def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
 
 def test_suite_reports_a_failing_and_a_broken_scenario_and_exits_1(tmp_path):
     failing = tmp_path / "failing.toml"
-    failing.write_text('world = "open_river"\nstretch = {start_s = 0.0, end_s = 20.0}\nexpect = ["gps.availability < 0.5"]\n'
-                       'matchers = [{id = "bev", kind = "bev3dof"}]\nestimators = [{id = "gps", kind = "gps_only"}]\n')
+    failing.write_text(
+        'world = "open_river"\nstretch = {start_s = 0.0, end_s = 20.0}\nexpect = ["gps.availability < 0.5"]\n'
+        'matchers = [{id = "bev", kind = "bev3dof"}]\nestimators = [{id = "gps", kind = "gps_only"}]\n'
+    )
     broken = tmp_path / "broken.toml"
     broken.write_text('world = "open_river"\nstretch = {start_s = 5000.0, end_s = 5010.0}\n')
     junit = tmp_path / "j.xml"
@@ -120,8 +140,10 @@ def test_expectations_fail_without_what_the_scenario_tests(name, tmp_path):
 
 def test_a_scenario_that_times_out_is_a_failure_and_leaves_nothing(tmp_path):
     slow = tmp_path / "slow.toml"
-    slow.write_text('world = "open_river"\nstretch = {start_s = 0.0, end_s = 600.0}\n'
-                    'matchers = [{id = "bev", kind = "bev3dof"}]\nestimators = [{id = "gps", kind = "gps_only"}]\n')
+    slow.write_text(
+        'world = "open_river"\nstretch = {start_s = 0.0, end_s = 600.0}\n'
+        'matchers = [{id = "bev", kind = "bev3dof"}]\nestimators = [{id = "gps", kind = "gps_only"}]\n'
+    )
     runs = tmp_path / "runs"
     result = runner.invoke(app, ["suite", str(slow), "--workers", "1", "--timeout", "12", "--out", str(runs), "--quiet"])
     assert result.exit_code == 1

@@ -44,14 +44,19 @@ def small_plan(**more) -> SweepPlan:
 
 # ---- the plan ----------------------------------------------------------------------------------------
 
+
 def test_grid_values_are_toml_and_commas_inside_brackets_do_not_split():
     axis = Axis.parse('stretch={start_s = 0.0, end_s = 10.0},{start_m = 5.0},"a,b",nis,3,0.5,[1, 2]')
     assert axis.values == ({"start_s": 0.0, "end_s": 10.0}, {"start_m": 5.0}, "a,b", "nis", 3, 0.5, [1, 2])
 
 
 def test_grid_expands_to_the_cartesian_product_times_seeds_with_distinct_hashes():
-    plan = SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.range_noise_m=0.01,0.02,0.03"),
-                                                Axis.parse("estimators.ekf.monitor=nis,none")), seeds=2, fixed=(SHORT,))
+    plan = SweepPlan(
+        ("canal_multipath",),
+        grid=(Axis.parse("lidar.range_noise_m=0.01,0.02,0.03"), Axis.parse("estimators.ekf.monitor=nis,none")),
+        seeds=2,
+        fixed=(SHORT,),
+    )
     points = plan.points()
     assert len(points) == 12 and len({p.hash for p in points}) == 12
     assert {p.seed for p in points} == {0, 1}
@@ -80,26 +85,37 @@ def test_integer_bounds_sample_integers_and_log_ranges_are_log_uniform():
 
 
 def test_samples_are_joint_and_crossed_with_the_grid():
-    plan = SweepPlan(("canal_multipath",), grid=(Axis.parse("estimators.ekf.monitor=nis,none"),),
-                     ranges=(Range.parse("lidar.range_noise_m=0.01:0.05"), Range.parse("vessel.sea_state=0:2")), samples=3, fixed=(SHORT,))
+    plan = SweepPlan(
+        ("canal_multipath",),
+        grid=(Axis.parse("estimators.ekf.monitor=nis,none"),),
+        ranges=(Range.parse("lidar.range_noise_m=0.01:0.05"), Range.parse("vessel.sea_state=0:2")),
+        samples=3,
+        fixed=(SHORT,),
+    )
     combos = plan.combinations()
     assert len(combos) == 6
     assert [c["lidar.range_noise_m"] for c in combos[:3]] == [c["lidar.range_noise_m"] for c in combos[3:]]
     assert combos == SweepPlan(plan.sources, plan.grid, plan.ranges, samples=3, fixed=plan.fixed).combinations()  # seeded draws
 
 
-@pytest.mark.parametrize(("make", "message"), [
-    (lambda: Axis.parse("lidar.range_noise_m="), "no values"),
-    (lambda: Axis.parse("=1,2"), "key=v1,v2"),
-    (lambda: Range.parse("lidar.range_noise_m=0.05:0.01"), "lo must be below hi"),
-    (lambda: Range.parse("lidar.range_noise_m=0:1:log"), "lo > 0"),
-    (lambda: Range.parse("lidar.range_noise_m=a:b"), "finite numbers"),
-    (lambda: SweepPlan(("canal_multipath",)), "nothing to sweep"),
-    (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("a=1,2"), Axis.parse("a=3"))), "swept twice"),
-    (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.no_such_key=1,2"),)).points(), "canal_multipath.toml: unknown key 'lidar.no_such_key'"),
-    (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.range_noise_m=fast,slow"),)).points(), "lidar.range_noise_m"),
-    (lambda: SweepPlan(("no_such_scenario",), seeds=2).points(), "unknown scenario 'no_such_scenario'"),
-])
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: Axis.parse("lidar.range_noise_m="), "no values"),
+        (lambda: Axis.parse("=1,2"), "key=v1,v2"),
+        (lambda: Range.parse("lidar.range_noise_m=0.05:0.01"), "lo must be below hi"),
+        (lambda: Range.parse("lidar.range_noise_m=0:1:log"), "lo > 0"),
+        (lambda: Range.parse("lidar.range_noise_m=a:b"), "finite numbers"),
+        (lambda: SweepPlan(("canal_multipath",)), "nothing to sweep"),
+        (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("a=1,2"), Axis.parse("a=3"))), "swept twice"),
+        (
+            lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.no_such_key=1,2"),)).points(),
+            "canal_multipath.toml: unknown key 'lidar.no_such_key'",
+        ),
+        (lambda: SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.range_noise_m=fast,slow"),)).points(), "lidar.range_noise_m"),
+        (lambda: SweepPlan(("no_such_scenario",), seeds=2).points(), "unknown scenario 'no_such_scenario'"),
+    ],
+)
 def test_bad_plans_fail_with_one_line_naming_the_problem(make, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")) as err:
         make()
@@ -117,6 +133,7 @@ def test_the_objective_must_be_a_metric_the_runs_have():
 
 
 # ---- running: local and Ray give the same table ---------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def local_sweep(tmp_path_factory):
@@ -168,7 +185,9 @@ def test_the_ray_backend_gives_the_same_table_to_the_last_bit(local_sweep, tmp_p
     for a, b in zip(local_sweep.rows, ray_result.rows):
         assert a.keys() == b.keys()
         assert {k: v for k, v in a.items() if not timing(k)} == {k: v for k, v in b.items() if not timing(k)}
-        assert (tmp_path / "ray" / b["run_dir"] / "groundtruth.tum").read_bytes() == (local_sweep.out_dir / a["run_dir"] / "groundtruth.tum").read_bytes()
+        assert (tmp_path / "ray" / b["run_dir"] / "groundtruth.tum").read_bytes() == (
+            local_sweep.out_dir / a["run_dir"] / "groundtruth.tum"
+        ).read_bytes()
 
 
 def test_a_finished_sweep_run_again_runs_nothing(local_sweep):
@@ -216,10 +235,23 @@ def test_ranking_takes_the_median_over_seeds():
 
 # ---- the command line: kill and resume, bad input ---------------------------------------------------------
 
+
 @pytest.mark.slow  # covered in the default run by the recover / skip / Ctrl-C tests; CI runs it with the slow ones
 def test_a_killed_sweep_leaves_a_consistent_table_and_the_same_command_completes_it(tmp_path):
-    args = ["sweep", "canal_multipath", "--grid", "lidar.range_noise_m=0.01,0.02,0.03,0.04", "--set", SHORT,
-            "--workers", "1", "--lean", "--quiet", "--out", "sw"]
+    args = [
+        "sweep",
+        "canal_multipath",
+        "--grid",
+        "lidar.range_noise_m=0.01,0.02,0.03,0.04",
+        "--set",
+        SHORT,
+        "--workers",
+        "1",
+        "--lean",
+        "--quiet",
+        "--out",
+        "sw",
+    ]
     proc = subprocess.Popen([*RIVERBENCH, *args], cwd=tmp_path, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     table = tmp_path / "sw" / "results.parquet"
     deadline = time.monotonic() + 300
@@ -238,12 +270,31 @@ def test_a_killed_sweep_leaves_a_consistent_table_and_the_same_command_completes
 
 
 def test_ctrl_c_stops_the_sweep_with_the_finished_runs_in_the_table(tmp_path):
-    args = ["sweep", "canal_multipath", "--grid", "lidar.range_noise_m=0.01,0.02,0.03", "--set", SHORT, "--workers", "1",
-            "--lean", "--quiet", "--out", "sw"]
+    args = [
+        "sweep",
+        "canal_multipath",
+        "--grid",
+        "lidar.range_noise_m=0.01,0.02,0.03",
+        "--set",
+        SHORT,
+        "--workers",
+        "1",
+        "--lean",
+        "--quiet",
+        "--out",
+        "sw",
+    ]
     # a shell without job control starts background jobs with SIGINT ignored, and Python keeps an ignored SIGINT:
     # give the sweep the default disposition a terminal's foreground process has, whatever runs the tests
-    proc = subprocess.Popen([*RIVERBENCH, *args], cwd=tmp_path, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        [*RIVERBENCH, *args],
+        cwd=tmp_path,
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     table = tmp_path / "sw" / "results.parquet"
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and (not table.exists() or pq.read_table(table).num_rows < 1):
@@ -256,16 +307,19 @@ def test_ctrl_c_stops_the_sweep_with_the_finished_runs_in_the_table(tmp_path):
     assert not [p for p in (tmp_path / "sw" / "runs").iterdir() if p.name.startswith(".")]  # interrupted runs cleaned up
 
 
-@pytest.mark.parametrize(("args", "message"), [
-    (["--grid", "lidar.no_such_key=1,2"], "canal_multipath.toml: unknown key 'lidar.no_such_key'"),
-    (["--grid", "lidar.range_noise_m=fast,slow"], "lidar.range_noise_m"),
-    (["--grid", "lidar.range_noise_m="], "no values"),
-    (["--seeds", "2", "--objective", "estimators.ekf.ape.p96"], "no such metric"),
-    (["--seeds", "2", "--plot", "matchers.gicp.speed"], "--plot 'matchers.gicp.speed'"),
-    (["--sample", "3", "lidar.range_noise_m=0.05:0.01"], "lo must be below hi"),
-    (["--seeds", "2", "--backend", "spark"], "--backend 'spark'"),
-    ([], "nothing to sweep"),
-])
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--grid", "lidar.no_such_key=1,2"], "canal_multipath.toml: unknown key 'lidar.no_such_key'"),
+        (["--grid", "lidar.range_noise_m=fast,slow"], "lidar.range_noise_m"),
+        (["--grid", "lidar.range_noise_m="], "no values"),
+        (["--seeds", "2", "--objective", "estimators.ekf.ape.p96"], "no such metric"),
+        (["--seeds", "2", "--plot", "matchers.gicp.speed"], "--plot 'matchers.gicp.speed'"),
+        (["--sample", "3", "lidar.range_noise_m=0.05:0.01"], "lo must be below hi"),
+        (["--seeds", "2", "--backend", "spark"], "--backend 'spark'"),
+        ([], "nothing to sweep"),
+    ],
+)
 def test_bad_sweep_input_is_one_line_exit_2_and_writes_nothing(tmp_path, monkeypatch, args, message):
     from typer.testing import CliRunner
 
@@ -281,13 +335,20 @@ def test_bad_sweep_input_is_one_line_exit_2_and_writes_nothing(tmp_path, monkeyp
 def test_a_missing_ray_is_one_line_saying_how_to_install_it(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
     (tmp_path / "ray.py").write_text("raise ImportError('no ray here')\n")
-    result = subprocess.run([*RIVERBENCH, "sweep", "canal_multipath", "--seeds", "2", "--backend", "ray", "--out", "sw"],
-                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [*RIVERBENCH, "sweep", "canal_multipath", "--seeds", "2", "--backend", "ray", "--out", "sw"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 2 and "pip install 'riverbench[ray]'" in result.stderr
     assert not (tmp_path / "sw").exists()
 
 
 # ---- the worker pool ----------------------------------------------------------------------------------------
+
 
 def die_on_two(x: int) -> int:
     """A job that kills its worker process on 2 and raises on 3."""
@@ -311,16 +372,26 @@ def test_sweep_plots_draw_the_median_over_seeds(local_sweep):
     lines = sweep_plots.lines(local_sweep.rows, ["matchers.gicp.ape_aligned.rmse"], "lidar.range_noise_m")
     assert len(lines) == 1 and lines[0].x == [0.01, 0.05]
     assert [sorted(v) for v in lines[0].values] == [
-        sorted(r["matchers.gicp.ape_aligned.rmse"] for r in local_sweep.rows if r["param.lidar.range_noise_m"] == x) for x in (0.01, 0.05)]
+        sorted(r["matchers.gicp.ape_aligned.rmse"] for r in local_sweep.rows if r["param.lidar.range_noise_m"] == x) for x in (0.01, 0.05)
+    ]
     written = sweeping.write_plots(local_sweep, small_plan(), None, [])
     assert {p.name for p in written} == {"estimators.all.ape.p95--lidar.range_noise_m.png", "matchers.gicp.success--lidar.range_noise_m.png"}
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in written)
 
 
 def test_table_flattening_counts_lists_and_keeps_nulls():
-    flat = sweep_table.flatten({"run": {"wall_s": 1.5, "scenario": "x", "failures": [{"id": "a"}], "lanes": [["gicp"]]},
-                                "estimators": {"ekf": {"ape": {"p95": None}, "failed": False}},
-                                "expectations": [{"pass": True}, {"pass": False}, {"pass": True}]})
-    assert flat == {"run.wall_s": 1.5, "run.failures": 1, "estimators.ekf.ape.p95": None, "estimators.ekf.failed": False,
-                    "expectations.passed": 2, "expectations.failed": 1}
-
+    flat = sweep_table.flatten(
+        {
+            "run": {"wall_s": 1.5, "scenario": "x", "failures": [{"id": "a"}], "lanes": [["gicp"]]},
+            "estimators": {"ekf": {"ape": {"p95": None}, "failed": False}},
+            "expectations": [{"pass": True}, {"pass": False}, {"pass": True}],
+        }
+    )
+    assert flat == {
+        "run.wall_s": 1.5,
+        "run.failures": 1,
+        "estimators.ekf.ape.p95": None,
+        "estimators.ekf.failed": False,
+        "expectations.passed": 2,
+        "expectations.failed": 1,
+    }

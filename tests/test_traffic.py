@@ -87,8 +87,7 @@ def test_a_boat_between_the_sensor_and_a_wall_occludes_it_and_has_its_own_label_
     ranges = np.linalg.norm(pw - origins, axis=1)
     inv = np.linalg.inv(mover.poses(times[on_wall]))
     d = (pw[on_wall] - origins[on_wall]) / ranges[on_wall, None]
-    t_box, _ = mover.cast(np.einsum("nab,nb->na", inv[:, :3, :3], origins[on_wall]) + inv[:, :3, 3],
-                          np.einsum("nab,nb->na", inv[:, :3, :3], d))
+    t_box, _ = mover.cast(np.einsum("nab,nb->na", inv[:, :3, :3], origins[on_wall]) + inv[:, :3, 3], np.einsum("nab,nb->na", inv[:, :3, :3], d))
     assert (t_box > ranges[on_wall]).all()
     # intensity of the side facing the ASV (its normal -y): 100 * reflectivity * cos(incidence)
     body = in_body(mover, times[on_box], pw[on_box])
@@ -164,10 +163,12 @@ def test_chase_boat_follows_at_distance_and_offset_and_never_asks_the_future(wal
 
 def test_crossing_and_oncoming_kinematics(wall):
     world, traj = wall
-    config = TrafficConfig(movers=[
-        {"kind": "crossing", "station_m": 100.0, "time_s": 10.0, "speed_mps": 4.0},
-        {"kind": "along", "station_m": 200.0, "time_s": 10.0, "speed_mps": 5.0, "oncoming": True, "lateral_m": 20.0},
-    ])
+    config = TrafficConfig(
+        movers=[
+            {"kind": "crossing", "station_m": 100.0, "time_s": 10.0, "speed_mps": 4.0},
+            {"kind": "along", "station_m": 200.0, "time_s": 10.0, "speed_mps": 5.0, "oncoming": True, "lateral_m": 20.0},
+        ]
+    )
     traffic = build_traffic(config, world, traj)
     assert traffic.ids == ["crossing_0", "along_1"]
     poses = traffic.poses([10.0, 12.0, 1000.0])

@@ -67,7 +67,7 @@ def test_same_params_identical_mesh_and_seed_changes_buildings(built):
     for a, b in zip(again.parts, ref.parts):
         assert np.array_equal(a.mesh.vertices, b.mesh.vertices) and np.array_equal(a.mesh.faces, b.mesh.faces)
     other = worlds.load("canal_lock", seed=3, use_cache=False)
-    buildings = lambda w: np.concatenate([p.mesh.vertices for p in w.parts_of_kind("building")])  # noqa: E731
+    buildings = lambda w: np.concatenate([p.mesh.vertices for p in w.parts_of_kind("building")])
     assert buildings(other).shape != buildings(ref).shape or not np.allclose(buildings(other), buildings(ref))
     assert np.array_equal(other.part("water").mesh.vertices, ref.part("water").mesh.vertices)
 
@@ -209,8 +209,14 @@ def test_facades_and_walls_are_truly_vertical(built):
 def test_charles_layout_follows_real_geography(built):
     world = built["charles_river"]
     assert 4500 <= world.route.length <= 5100
-    places = {"bu_bridge": (0, 0), "harvard_bridge": (1570, 200), "longfellow_bridge": (2900, 830),
-              "museum_dam_bridge": (3260, 1540), "charles_river_dam_lock": (3950, 1640), "charlestown_bridge": (4100, 1780)}
+    places = {
+        "bu_bridge": (0, 0),
+        "harvard_bridge": (1570, 200),
+        "longfellow_bridge": (2900, 830),
+        "museum_dam_bridge": (3260, 1540),
+        "charles_river_dam_lock": (3950, 1640),
+        "charlestown_bridge": (4100, 1780),
+    }
     st_ = {s["name"]: s for s in world.params["structures"]}
     assert [s["name"] for s in world.params["structures"]] == list(places)
     for name, enu in places.items():
@@ -219,7 +225,7 @@ def test_charles_layout_follows_real_geography(built):
     assert st_["harvard_bridge"]["piers"] >= 18
     assert 550 <= st_["harvard_bridge"]["length_m"] <= 700
     basin = (world.route.s > st_["bu_bridge"]["station_m"] + 400) & (world.route.s < st_["longfellow_bridge"]["station_m"])
-    assert 40 <= world.route.right_m[basin].min() and world.route.right_m[basin].max() <= 80
+    assert world.route.right_m[basin].min() >= 40 and world.route.right_m[basin].max() <= 80
     width = world.route.left_m + world.route.right_m
     assert width[basin].max() > 450
     tall = max(p.mesh.bounds[1, 2] for p in world.parts_of_kind("building"))
@@ -241,18 +247,24 @@ def test_canal_straight_stretch_is_straight_and_empty(built):
         assert not ((along > 0) & (along < b - a)).any()
 
 
-@pytest.mark.parametrize("overrides, key", [
-    ({"width_m": -5}, "width_m"),
-    ({"wall_height": 3}, "wall_height"),
-    ({"lock_chamber_width_m": 30}, "chamber_width_m"),
-    ({"bridges": [{"name": "b", "type": "beam", "station_m": 5000.0}]}, "station_m"),
-    ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "deck_width_m": 0}]}, "deck_width_m"),
-    ({"bridges": [{"name": "b", "type": "suspension", "station_m": 100.0}]}, "type"),
-    ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "length_m": 5}]}, "length_m"),
-    ({"bridges": [{"name": "b", "type": "arch", "station_m": 100.0, "pier_spacing_m": 10, "pier_width_m": 9}]}, "pier_width_m"),
-    ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "pier_spacing_m": 8, "pier_width_m": 5, "crossing_angle_deg": 30}]}, "pier_spacing_m"),
-    ({"seed": -1}, "seed"),
-])
+@pytest.mark.parametrize(
+    "overrides, key",
+    [
+        ({"width_m": -5}, "width_m"),
+        ({"wall_height": 3}, "wall_height"),
+        ({"lock_chamber_width_m": 30}, "chamber_width_m"),
+        ({"bridges": [{"name": "b", "type": "beam", "station_m": 5000.0}]}, "station_m"),
+        ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "deck_width_m": 0}]}, "deck_width_m"),
+        ({"bridges": [{"name": "b", "type": "suspension", "station_m": 100.0}]}, "type"),
+        ({"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "length_m": 5}]}, "length_m"),
+        ({"bridges": [{"name": "b", "type": "arch", "station_m": 100.0, "pier_spacing_m": 10, "pier_width_m": 9}]}, "pier_width_m"),
+        (
+            {"bridges": [{"name": "b", "type": "beam", "station_m": 100.0, "pier_spacing_m": 8, "pier_width_m": 5, "crossing_angle_deg": 30}]},
+            "pier_spacing_m",
+        ),
+        ({"seed": -1}, "seed"),
+    ],
+)
 def test_bad_parameters_name_the_key(overrides, key):
     with pytest.raises(ValueError, match=key) as info:
         worlds.load("canal_lock", use_cache=False, **overrides)
@@ -264,11 +276,14 @@ def test_unknown_preset_lists_available():
         worlds.load("amazon")
 
 
-@pytest.mark.parametrize("content, problem", [
-    ("this is not a mesh\n", "could not be read|no triangles"),
-    ("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "NaN"),
-    ("v 0 0 0\nv 1 0 0\n", "no triangles"),
-])
+@pytest.mark.parametrize(
+    "content, problem",
+    [
+        ("this is not a mesh\n", "could not be read|no triangles"),
+        ("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "NaN"),
+        ("v 0 0 0\nv 1 0 0\n", "no triangles"),
+    ],
+)
 def test_bad_mesh_files(tmp_path, content, problem):
     path = tmp_path / "bad.obj"
     path.write_text(content)
@@ -405,9 +420,11 @@ def test_untangle_leaves_no_loops(radius, offset, turn):
     the inner side gives a curve without loops, and no point is left inside the offset distance."""
     ang = np.radians(np.linspace(-90, -90 + turn, 60))
     exit_dir = np.array([-np.sin(ang[-1]), np.cos(ang[-1])])
-    line = np.r_[np.c_[np.linspace(-1000, 0, 60)[:-1], np.full(59, -radius)],
-                 np.c_[radius * np.cos(ang), radius * np.sin(ang)],
-                 radius * np.array([np.cos(ang[-1]), np.sin(ang[-1])]) + np.linspace(0, 1000, 60)[1:, None] * exit_dir]
+    line = np.r_[
+        np.c_[np.linspace(-1000, 0, 60)[:-1], np.full(59, -radius)],
+        np.c_[radius * np.cos(ang), radius * np.sin(ang)],
+        radius * np.array([np.cos(ang[-1]), np.sin(ang[-1])]) + np.linspace(0, 1000, 60)[1:, None] * exit_dir,
+    ]
     d = np.gradient(line, axis=0)
     nl = np.c_[-d[:, 1], d[:, 0]] / np.linalg.norm(d, axis=1)[:, None]
     pts = untangle(line + offset * nl)
@@ -418,13 +435,27 @@ def test_untangle_leaves_no_loops(radius, offset, turn):
 
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(width=st.floats(16.0, 50.0), wall=st.floats(1.0, 6.0), deck=st.floats(3.2, 8.0), gate=st.sampled_from(["mitre", "lift"]),
-       chamber_frac=st.floats(0.3, 0.9))
+@given(
+    width=st.floats(16.0, 50.0),
+    wall=st.floats(1.0, 6.0),
+    deck=st.floats(3.2, 8.0),
+    gate=st.sampled_from(["mitre", "lift"]),
+    chamber_frac=st.floats(0.3, 0.9),
+)
 def test_canal_invariants_over_parameters(width, wall, deck, gate, chamber_frac):
     chamber = max(5.0, chamber_frac * (width - 2.5))
-    world = worlds.load("canal_lock", width_m=width, wall_height_m=wall, bridge_deck_height_m=deck,
-                        lock_gate_type=gate, lock_chamber_width_m=chamber, buildings=False, docks=False, moored_boats=False,
-                        use_cache=False)
+    world = worlds.load(
+        "canal_lock",
+        width_m=width,
+        wall_height_m=wall,
+        bridge_deck_height_m=deck,
+        lock_gate_type=gate,
+        lock_chamber_width_m=chamber,
+        buildings=False,
+        docks=False,
+        moored_boats=False,
+        use_cache=False,
+    )
     t, kind = cast(world, route_points(world, 0.5, step=5), (0, 0, -1))
     assert (kind == "water").all()
     keep = ~structure_stations(world, 15.0)
@@ -453,8 +484,15 @@ def test_girders_and_ribs_face_along_the_route(kind, spacing_key, depth_key):
     between two members meets the next one's side at half the spacing less half its width (the
     surfaces that let a scan matcher measure motion along the route under a deck)."""
     spacing, depth, clearance = 4.0, 1.5, 6.0
-    spec = dict(name="b", type=kind, station_m=800.0, deck_height_m=clearance, deck_width_m=24.0, pier_spacing_m=40.0,
-                **{spacing_key: spacing, depth_key: depth})
+    spec = dict(
+        name="b",
+        type=kind,
+        station_m=800.0,
+        deck_height_m=clearance,
+        deck_width_m=24.0,
+        pier_spacing_m=40.0,
+        **{spacing_key: spacing, depth_key: depth},
+    )
     world = worlds.load("open_river", bridges=[spec], use_cache=False)
     xy, heading = world.route.at(800.0)
     ahead = np.array([np.cos(heading), np.sin(heading)])
@@ -466,9 +504,16 @@ def test_girders_and_ribs_face_along_the_route(kind, spacing_key, depth_key):
 
 
 @settings(max_examples=8, deadline=None)
-@given(kind=st.sampled_from(["beam", "arch", "truss"]), station=st.floats(300.0, 1700.0), angle=st.floats(-40.0, 40.0),
-       deck=st.floats(3.0, 15.0), width=st.floats(4.0, 40.0), spacing=st.floats(12.0, 120.0), pier=st.floats(0.5, 4.0),
-       members=st.sampled_from([0.0, 2.5, 6.0]))
+@given(
+    kind=st.sampled_from(["beam", "arch", "truss"]),
+    station=st.floats(300.0, 1700.0),
+    angle=st.floats(-40.0, 40.0),
+    deck=st.floats(3.0, 15.0),
+    width=st.floats(4.0, 40.0),
+    spacing=st.floats(12.0, 120.0),
+    pier=st.floats(0.5, 4.0),
+    members=st.sampled_from([0.0, 2.5, 6.0]),
+)
 def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck, width, spacing, pier, members):
     """The deck (on a slab, a vault, girders or ribs) is at its clearance over the route; piers keep the clearance that spacing, pier width
     and the crossing angle leave (mid-span at the station, slanting across a wide deck)."""
@@ -478,8 +523,16 @@ def test_any_bridge_spans_the_route_at_its_clearance(kind, station, angle, deck,
     gap_u = spacing / 2 - pier / 2 - abs(np.tan(np.radians(angle))) * (width / 2 + 1.0)
     clearance = gap_u * np.cos(np.radians(angle)) - 0.15
     assume(clearance > 1.2)
-    spec = dict(name="b", type=kind, station_m=station, crossing_angle_deg=angle, deck_height_m=deck,
-                deck_width_m=width, pier_spacing_m=spacing, pier_width_m=pier)
+    spec = dict(
+        name="b",
+        type=kind,
+        station_m=station,
+        crossing_angle_deg=angle,
+        deck_height_m=deck,
+        deck_width_m=width,
+        pier_spacing_m=spacing,
+        pier_width_m=pier,
+    )
     spec |= {"beam": {"girder_spacing_m": members}, "arch": {"rib_spacing_m": members}}.get(kind, {})
     world = worlds.load("open_river", bridges=[spec], use_cache=False)
     (placed,) = world.params["structures"]

@@ -1,10 +1,10 @@
 """Procedural river worlds: typed mesh parts, materials, the route, presets and mesh file I/O.
 
-    worlds.available()                      -> sorted preset names
-    worlds.load("canal_lock", width_m=30)   -> World (preset with overrides; cached on disk)
-    worlds.load("scan.ply", route=[[0, 0], [100, 0]])  -> World from any mesh file trimesh reads
-    worlds.export(world, "out.glb")         -> writes the world's triangles atomically
-    worlds.describe(world)                  -> json-able summary
+worlds.available()                      -> sorted preset names
+worlds.load("canal_lock", width_m=30)   -> World (preset with overrides; cached on disk)
+worlds.load("scan.ply", route=[[0, 0], [100, 0]])  -> World from any mesh file trimesh reads
+worlds.export(world, "out.glb")         -> writes the world's triangles atomically
+worlds.describe(world)                  -> json-able summary
 """
 
 from __future__ import annotations
@@ -20,8 +20,18 @@ from worlds.route import Route
 from worlds.world import PART_KINDS, Part, World
 
 __all__ = [
-    "MATERIALS", "PART_KINDS", "Material", "Part", "Route", "World",
-    "add_mesh_part", "available", "describe", "export", "load", "resolve_params",
+    "MATERIALS",
+    "PART_KINDS",
+    "Material",
+    "Part",
+    "Route",
+    "World",
+    "add_mesh_part",
+    "available",
+    "describe",
+    "export",
+    "load",
+    "resolve_params",
 ]
 
 
@@ -46,7 +56,7 @@ def load(name_or_path: str | os.PathLike, *, use_cache: bool = True, **params) -
     name = str(name_or_path)
     if name in presets.PRESETS:
         resolved = presets.resolve(name, params)
-        build = lambda: presets.build(name, resolved)  # noqa: E731
+        build = lambda: presets.build(name, resolved)
         if not use_cache:
             return build()
         return cache.load_or_build(name, resolved.model_dump(mode="json"), build)

@@ -39,11 +39,11 @@ class Boats:
     def __len__(self) -> int:
         return len(self.xy)
 
-    def take(self, keep: np.ndarray) -> "Boats":
+    def take(self, keep: np.ndarray) -> Boats:
         return Boats(*(getattr(self, f)[keep] for f in FIELDS))
 
     @classmethod
-    def concatenate(cls, boats: list["Boats"]) -> "Boats":
+    def concatenate(cls, boats: list[Boats]) -> Boats:
         empty = (np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, bool), np.zeros(0))
         return cls(*(np.concatenate([getattr(b, f) for b in boats] + [e]) for f, e in zip(FIELDS, empty)))
 
@@ -79,24 +79,30 @@ def build_boats(boats: Boats) -> list[Part]:
     hulls = _instances(_HULL, boats, np.stack([L, B, F + DRAFT_M], 1), np.stack([zeros, zeros, np.full(n, -DRAFT_M)], 1))
     motor = ~boats.sail
     cabin_h = boats.rig
-    cabins = _instances(_BOX, boats.take(motor), np.stack([0.4 * L, 0.7 * B, cabin_h], 1)[motor],
-                        np.stack([-0.05 * L, zeros, F + cabin_h / 2], 1)[motor])
+    cabins = _instances(
+        _BOX, boats.take(motor), np.stack([0.4 * L, 0.7 * B, cabin_h], 1)[motor], np.stack([-0.05 * L, zeros, F + cabin_h / 2], 1)[motor]
+    )
     sail = boats.take(boats.sail)
     ls, fs = sail.length, sail.freeboard
     mast_h = sail.rig
     z = np.zeros(len(sail))
-    masts = _instances(_ROD, sail, np.stack([np.full(len(sail), 0.06), np.full(len(sail), 0.06), mast_h], 1),
-                       np.stack([0.1 * ls, z, fs + mast_h / 2], 1))
-    booms = _instances(_ROD, sail, np.stack([0.45 * ls, np.full(len(sail), 0.05), np.full(len(sail), 0.05)], 1),
-                       np.stack([-0.125 * ls, z, fs + 1.0], 1), lie_along_x=True)
+    masts = _instances(
+        _ROD, sail, np.stack([np.full(len(sail), 0.06), np.full(len(sail), 0.06), mast_h], 1), np.stack([0.1 * ls, z, fs + mast_h / 2], 1)
+    )
+    booms = _instances(
+        _ROD,
+        sail,
+        np.stack([0.45 * ls, np.full(len(sail), 0.05), np.full(len(sail), 0.05)], 1),
+        np.stack([-0.125 * ls, z, fs + 1.0], 1),
+        lie_along_x=True,
+    )
     parts = [Part("moored_boat_hulls", "moored_boat", FIBREGLASS, merge([m for m in (hulls, cabins) if m is not None]))]
     if masts is not None and booms is not None:  # None exactly when no boat has a sail
         parts.append(Part("moored_boat_masts", "moored_boat", ALUMINIUM, merge([masts, booms])))
     return parts
 
 
-def _instances(template: trimesh.Trimesh, boats: Boats, scale: np.ndarray, shift: np.ndarray,
-               lie_along_x: bool = False) -> trimesh.Trimesh | None:
+def _instances(template: trimesh.Trimesh, boats: Boats, scale: np.ndarray, shift: np.ndarray, lie_along_x: bool = False) -> trimesh.Trimesh | None:
     """One copy of `template` per boat: scaled, shifted in the boat frame (x bow, z up), placed."""
     if not len(boats):
         return None
@@ -105,8 +111,9 @@ def _instances(template: trimesh.Trimesh, boats: Boats, scale: np.ndarray, shift
         v = v[:, [2, 1, 0]]
     local = v[None] * scale[:, None] + shift[:, None]
     c, s = np.cos(boats.heading)[:, None], np.sin(boats.heading)[:, None]
-    world = np.stack([boats.xy[:, :1] + c * local[..., 0] - s * local[..., 1],
-                      boats.xy[:, 1:] + s * local[..., 0] + c * local[..., 1], local[..., 2]], -1)
+    world = np.stack(
+        [boats.xy[:, :1] + c * local[..., 0] - s * local[..., 1], boats.xy[:, 1:] + s * local[..., 0] + c * local[..., 1], local[..., 2]], -1
+    )
     faces = np.asarray(template.faces)
     if lie_along_x:
         faces = faces[:, ::-1]  # swapping two axes mirrors the mesh: keep the normals outward

@@ -37,12 +37,17 @@ class BridgeSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     name: str = Field(..., min_length=1, description="unique name, used in part names and world.params['structures']")
-    type: BridgeType = Field(..., description="beam (deck on piers, on girders if girder_spacing_m > 0), arch (masonry vaults, or steel ribs "
-                             "if rib_spacing_m > 0, on piers) or truss (steel girders, truss and pipes)")
+    type: BridgeType = Field(
+        ...,
+        description="beam (deck on piers, on girders if girder_spacing_m > 0), arch (masonry vaults, or steel ribs "
+        "if rib_spacing_m > 0, on piers) or truss (steel girders, truss and pipes)",
+    )
     station_m: float = Field(..., description="route arc length where the bridge axis crosses the route, m")
     crossing_angle_deg: float = Field(0.0, ge=-60.0, le=60.0, description="angle between the bridge axis and the route's normal, deg (0 = square)")
     deck_height_m: float = Field(6.0, gt=0.5, le=60.0, description="clearance above the water of the lowest structure over the route, m")
-    deck_width_m: float = Field(20.0, gt=0.0, le=200.0, description="width of the deck across its axis, m (about the along-route length of the GPS shadow)")
+    deck_width_m: float = Field(
+        20.0, gt=0.0, le=200.0, description="width of the deck across its axis, m (about the along-route length of the GPS shadow)"
+    )
     deck_thickness_m: float = Field(1.2, gt=0.0, le=10.0, description="thickness of the deck slab (beam) or road deck (arch, truss), m")
     length_m: float | None = Field(None, gt=0.0, description="overall length along the axis; None = channel width along the axis plus both abutments")
     abutment_m: float = Field(15.0, ge=0.0, le=200.0, description="how far the deck reaches onto land beyond each channel edge, m")
@@ -53,15 +58,27 @@ class BridgeSpec(BaseModel):
     arch_spring_m: float = Field(1.5, ge=0.0, le=30.0, description="arch: height above the water where arches spring from the piers, m")
     truss_height_m: float = Field(5.0, ge=0.0, le=40.0, description="truss: height of the through truss above the deck, m (0 = girders only)")
     girder_depth_m: float = Field(1.6, gt=0.2, le=10.0, description="beam with girders, truss: depth of the steel girders under the road deck, m")
-    girder_spacing_m: float = Field(0.0, ge=0.0, le=10.0, description="beam: spacing across the deck of steel I-girders along the bridge axis under "
-                                    "the slab, one under the route's centreline, m (0 = a flat slab soffit)")
-    rib_spacing_m: float = Field(0.0, ge=0.0, le=20.0, description="arch: spacing across the deck of steel arch ribs carrying the deck on spandrel "
-                                 "columns, one under the route's centreline, m (0 = a masonry vault with spandrel walls)")
+    girder_spacing_m: float = Field(
+        0.0,
+        ge=0.0,
+        le=10.0,
+        description="beam: spacing across the deck of steel I-girders along the bridge axis under "
+        "the slab, one under the route's centreline, m (0 = a flat slab soffit)",
+    )
+    rib_spacing_m: float = Field(
+        0.0,
+        ge=0.0,
+        le=20.0,
+        description="arch: spacing across the deck of steel arch ribs carrying the deck on spandrel "
+        "columns, one under the route's centreline, m (0 = a masonry vault with spandrel walls)",
+    )
     rib_depth_m: float = Field(1.5, gt=0.2, le=10.0, description="arch with ribs: depth of each rib, m")
-    panel_m: float = Field(6.0, gt=1.0, le=50.0, description="truss: panel length of the truss and bracing; arch with ribs: spacing of the spandrel columns, m")
+    panel_m: float = Field(
+        6.0, gt=1.0, le=50.0, description="truss: panel length of the truss and bracing; arch with ribs: spacing of the spandrel columns, m"
+    )
 
     @model_validator(mode="after")
-    def _piers_fit(self) -> "BridgeSpec":
+    def _piers_fit(self) -> BridgeSpec:
         if self.pier_width_m >= self.pier_spacing_m - 2.0:
             raise ValueError(f"pier_width_m={self.pier_width_m} must be at least 2 m less than pier_spacing_m={self.pier_spacing_m}")
         return self
@@ -118,10 +135,11 @@ def _piers(spec: BridgeSpec, route: Route, origin, u, v, top: float) -> list[tri
     for c in spec.piers_u(route):
         gap = np.abs(pu - c)[np.abs(pv) <= length / 2]
         if len(gap) and gap.min() < spec.pier_width_m / 2 + 1.0:
-            raise ValueError(f"bridge {spec.name!r}: pier_spacing_m={spec.pier_spacing_m} puts a pier within 1 m of the route "
-                             f"(crossing_angle_deg={spec.crossing_angle_deg}, deck_width_m={spec.deck_width_m})")
-    return [_local_box(origin, u, v, (pu, 0.0, 0.5 * (z0 + top)), (spec.pier_width_m, length, top - z0))
-            for pu in spec.piers_u(route)]
+            raise ValueError(
+                f"bridge {spec.name!r}: pier_spacing_m={spec.pier_spacing_m} puts a pier within 1 m of the route "
+                f"(crossing_angle_deg={spec.crossing_angle_deg}, deck_width_m={spec.deck_width_m})"
+            )
+    return [_local_box(origin, u, v, (pu, 0.0, 0.5 * (z0 + top)), (spec.pier_width_m, length, top - z0)) for pu in spec.piers_u(route)]
 
 
 def _deck(spec: BridgeSpec, origin, u, v, u0: float, u1: float, z_bottom: float) -> list[trimesh.Trimesh]:
@@ -130,8 +148,9 @@ def _deck(spec: BridgeSpec, origin, u, v, u0: float, u1: float, z_bottom: float)
     out = [_local_box(origin, u, v, (0.5 * (u0 + u1), 0.0, z_bottom + t / 2), (u1 - u0, w, t))]
     if spec.parapet_m > 0:
         for side in (-1, 1):
-            out.append(_local_box(origin, u, v, (0.5 * (u0 + u1), side * (w / 2 - 0.15), z_bottom + t + spec.parapet_m / 2),
-                                  (u1 - u0, 0.3, spec.parapet_m)))
+            out.append(
+                _local_box(origin, u, v, (0.5 * (u0 + u1), side * (w / 2 - 0.15), z_bottom + t + spec.parapet_m / 2), (u1 - u0, 0.3, spec.parapet_m))
+            )
     return out
 
 
@@ -199,8 +218,9 @@ def _swept(origin, u, v, uu: np.ndarray):
     return lambda vv, z: _world(origin, u, v, np.c_[uu, np.full(len(uu), vv), z])
 
 
-def _rib_span(origin, u, v, a: float, b: float, spring: float, crown: float, depth: float, across: np.ndarray,
-              column_every: float, deck_bottom: float) -> list[trimesh.Trimesh]:
+def _rib_span(
+    origin, u, v, a: float, b: float, spring: float, crown: float, depth: float, across: np.ndarray, column_every: float, deck_bottom: float
+) -> list[trimesh.Trimesh]:
     """Steel arch ribs 0.8 m wide between pier faces a < b at each offset `across` (their sides face
     along the route), and 0.5 m square spandrel columns from each rib up to the deck every column_every m."""
     uu, zz = _arch_curve(a, b, spring, crown)
@@ -226,8 +246,7 @@ def _arch_span(origin, u, v, a: float, b: float, spring: float, crown: float, to
     uu, zz = _arch_curve(a, b, spring, crown)
     curve = _swept(origin, u, v, uu)
     vault = orient(strip(np.stack([curve(-half_w, zz), curve(half_w, zz)])), -UP)
-    sides = [orient(strip(np.stack([curve(s * half_w, zz), curve(s * half_w, np.full(len(uu), top))])), np.r_[s * v, 0.0])
-             for s in (-1, 1)]
+    sides = [orient(strip(np.stack([curve(s * half_w, zz), curve(s * half_w, np.full(len(uu), top))])), np.r_[s * v, 0.0]) for s in (-1, 1)]
     return [vault, *sides]
 
 
@@ -245,8 +264,9 @@ def build_arch(spec: BridgeSpec, route: Route) -> list[Part]:
     arches = []
     for a, b in zip(faces[0::2], faces[1::2]):
         if ribbed:
-            arches += _rib_span(origin, u, v, a, b, spring, crown, spec.rib_depth_m, _across(spec.deck_width_m, spec.rib_spacing_m, 0.5),
-                                spec.panel_m, top)
+            arches += _rib_span(
+                origin, u, v, a, b, spring, crown, spec.rib_depth_m, _across(spec.deck_width_m, spec.rib_spacing_m, 0.5), spec.panel_m, top
+            )
         else:
             arches += _arch_span(origin, u, v, a, b, spring, crown, top, spec.deck_width_m / 2)
     parts = [
@@ -290,8 +310,12 @@ def build_truss(spec: BridgeSpec, route: Route) -> list[Part]:
                     steel.append(pipe(_world(origin, u, v, (pu, tv, a)), _world(origin, u, v, (panels[k + 1], tv, b)), 0.12))
     parts = [
         Part(f"{spec.name}_girders", "girder", MATERIALS["steel"], merge(steel)),
-        Part(f"{spec.name}_deck", "bridge_deck", MATERIALS["concrete"],
-             merge([_local_box(origin, u, v, (mid, 0.0, deck_bottom + spec.deck_thickness_m / 2), (length, w, spec.deck_thickness_m))])),
+        Part(
+            f"{spec.name}_deck",
+            "bridge_deck",
+            MATERIALS["concrete"],
+            merge([_local_box(origin, u, v, (mid, 0.0, deck_bottom + spec.deck_thickness_m / 2), (length, w, spec.deck_thickness_m))]),
+        ),
     ]
     piers = _piers(spec, route, origin, u, v, h)
     if piers:
@@ -326,10 +350,15 @@ def summary(spec: BridgeSpec, route: Route) -> dict:
     start, end = shadow(spec, route)
     u0, u1, _, _ = spec.extent(route)
     return {
-        "name": spec.name, "type": f"{spec.type}_bridge", "station_m": spec.station_m,
-        "deck_height_m": spec.deck_height_m, "deck_width_m": spec.deck_width_m,
-        "crossing_angle_deg": spec.crossing_angle_deg, "length_m": float(u1 - u0),
-        "shadow_start_m": start, "shadow_end_m": end, "piers": len(spec.piers_u(route)),
+        "name": spec.name,
+        "type": f"{spec.type}_bridge",
+        "station_m": spec.station_m,
+        "deck_height_m": spec.deck_height_m,
+        "deck_width_m": spec.deck_width_m,
+        "crossing_angle_deg": spec.crossing_angle_deg,
+        "length_m": float(u1 - u0),
+        "shadow_start_m": start,
+        "shadow_end_m": end,
+        "piers": len(spec.piers_u(route)),
         "pier_spacing_m": spec.pier_spacing_m,
     }
-

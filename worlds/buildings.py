@@ -41,7 +41,7 @@ class BuildingRow(BaseModel):
     rows: int = Field(1, ge=1, le=10, description="number of blocks one behind the other (streets of gap_m between them)")
 
     @model_validator(mode="after")
-    def _ranges(self) -> "BuildingRow":
+    def _ranges(self) -> BuildingRow:
         for key in ("height_m", "frontage_m", "depth_m", "gap_m"):
             lo, hi = getattr(self, key)
             if not 0.0 <= lo <= hi or (key != "gap_m" and lo <= 0):

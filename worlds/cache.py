@@ -8,6 +8,7 @@ rebuilt, never fatal.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -49,7 +50,9 @@ def key(preset: str, params: dict) -> str:
 def save(world: World, path: Path) -> None:
     """Write `world` to `path` (.npz) atomically."""
     meta = {
-        "name": world.name, "origin": list(world.origin), "params": world.params,
+        "name": world.name,
+        "origin": list(world.origin),
+        "params": world.params,
         "parts": [{"name": p.name, "kind": p.kind, "material": p.material.name} for p in world.parts],
     }
     arrays = {"meta": np.array(json.dumps(meta))}
@@ -79,8 +82,7 @@ def read(path: Path) -> World:
             Part(m["name"], m["kind"], MATERIALS[m["material"]], trimesh.Trimesh(data[f"v{i}"], data[f"f{i}"], process=False))
             for i, m in enumerate(meta["parts"])
         ]
-        route = Route(xy=data["route_xy"], s=data["route_s"], heading=data["route_heading"],
-                      left_m=data["route_left"], right_m=data["route_right"])
+        route = Route(xy=data["route_xy"], s=data["route_s"], heading=data["route_heading"], left_m=data["route_left"], right_m=data["route_right"])
         crowns = Crowns(data["crown_centre"], data["crown_radius"])
     return World(name=meta["name"], parts=parts, route=route, origin=tuple(meta["origin"]), params=meta["params"], crowns=crowns)
 
@@ -91,11 +93,9 @@ def load_or_build(preset: str, params: dict, build) -> World:
     if path.exists():
         try:
             return read(path)
-        except Exception:  # noqa: BLE001 - a corrupt entry of any kind is rebuilt
+        except Exception:
             pass
     world = build()
-    try:
+    with contextlib.suppress(OSError):  # a read-only or full cache directory only costs the next load a rebuild
         save(world, path)
-    except OSError:
-        pass  # a read-only or full cache directory only costs the next load a rebuild
     return world

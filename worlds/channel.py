@@ -59,12 +59,14 @@ class EdgeStyle(BaseModel):
             pts = [(0.0, -self.below_m, "", "", ""), (0.0, self.top_m, "wall", "wall", face)]
             back = 0.0
         elif self.type == "quay":
-            pts = [(0.0, -self.below_m, "", "", ""), (0.0, self.top_m, "quay", "quay", face),
-                   (self.quay_deck_m, self.top_m, "quaydeck", "quay", "concrete")]
+            pts = [
+                (0.0, -self.below_m, "", "", ""),
+                (0.0, self.top_m, "quay", "quay", face),
+                (self.quay_deck_m, self.top_m, "quaydeck", "quay", "concrete"),
+            ]
             back = self.quay_deck_m
         else:
-            pts = [(-self.below_m / self.slope, -self.below_m, "", "", ""),
-                   (self.top_m / self.slope, self.top_m, "bank", "bank", face)]
+            pts = [(-self.below_m / self.slope, -self.below_m, "", "", ""), (self.top_m / self.slope, self.top_m, "bank", "bank", face)]
             back = self.top_m / self.slope
         pts.append((back + self.ground_width_m, self.top_m, "ground", "bank", "grass" if self.type == "bank" else "soil"))
         return pts
@@ -103,7 +105,7 @@ class Centerline:
     right: np.ndarray
 
     @classmethod
-    def of(cls, route: Route, extension_m: float) -> "Centerline":
+    def of(cls, route: Route, extension_m: float) -> Centerline:
         """Extend `route` by `extension_m` at each end along its end headings (2 m steps)."""
         n = max(int(np.ceil(extension_m / 2.0)), 1) if extension_m > 0 else 0
         ext = np.linspace(extension_m, 0.0, n, endpoint=False)[::-1] if n else np.zeros(0)
@@ -163,8 +165,16 @@ def edge_summary(route: Route, params: ChannelParams) -> list[dict]:
     out = []
     for side in ("left", "right"):
         for a, b, style in _intervals(side, params, 0.0, route.length):
-            out.append({"side": side, "start_m": float(a), "end_m": float(b), "type": style.type, "top_m": style.top_m,
-                        "material": style.material or DEFAULT_MATERIAL[style.type]})
+            out.append(
+                {
+                    "side": side,
+                    "start_m": float(a),
+                    "end_m": float(b),
+                    "type": style.type,
+                    "top_m": style.top_m,
+                    "material": style.material or DEFAULT_MATERIAL[style.type],
+                }
+            )
     return out
 
 

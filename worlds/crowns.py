@@ -28,13 +28,12 @@ class Crowns:
         return len(self.centre)
 
     @classmethod
-    def empty(cls) -> "Crowns":
+    def empty(cls) -> Crowns:
         return cls(np.zeros((0, 3)), np.zeros((0, 2)))
 
     @classmethod
-    def concatenate(cls, crowns: list["Crowns"]) -> "Crowns":
-        return cls(np.concatenate([c.centre for c in crowns] + [np.zeros((0, 3))]),
-                   np.concatenate([c.radius for c in crowns] + [np.zeros((0, 2))]))
+    def concatenate(cls, crowns: list[Crowns]) -> Crowns:
+        return cls(np.concatenate([c.centre for c in crowns] + [np.zeros((0, 3))]), np.concatenate([c.radius for c in crowns] + [np.zeros((0, 2))]))
 
     def path_length(self, origin: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """Total length (m) inside crowns of the rays from `origin` (3,) along unit `directions` (M, 3).

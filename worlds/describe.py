@@ -24,8 +24,10 @@ def describe(world: World) -> dict:
         "triangles": int(sum(len(p.mesh.faces) for p in world.parts)),
         "kinds": dict(sorted(kinds.items())),
         "route_length_m": round(world.route.length, 3),
-        "route_width_m": [round(float((world.route.left_m + world.route.right_m).min()), 3),
-                          round(float((world.route.left_m + world.route.right_m).max()), 3)],
+        "route_width_m": [
+            round(float((world.route.left_m + world.route.right_m).min()), 3),
+            round(float((world.route.left_m + world.route.right_m).max()), 3),
+        ],
         "bounds": {"min": bounds[0].round(3).tolist(), "max": bounds[1].round(3).tolist()},
         "structures": world.params.get("structures", []),
     }

@@ -71,7 +71,7 @@ def untangle(pts: np.ndarray) -> np.ndarray:
     for i, j, x in sorted(hits, key=lambda h: (h[0], -h[1])):
         if i < done:
             continue
-        out[i + 1:j + 1] = x
+        out[i + 1 : j + 1] = x
         done = j
     return out
 

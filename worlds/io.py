@@ -25,7 +25,9 @@ class FileWorldParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    route: list[tuple[float, float]] | None = Field(None, description="route waypoints [[x, y], ...] in the file's ENU metres; None = along the longest horizontal bounding-box axis at mid-width")
+    route: list[tuple[float, float]] | None = Field(
+        None, description="route waypoints [[x, y], ...] in the file's ENU metres; None = along the longest horizontal bounding-box axis at mid-width"
+    )
     left_m: float | None = Field(None, gt=0.0, description="route distance to the left bank, m; None = half the bounding box across the route")
     right_m: float | None = Field(None, gt=0.0, description="route distance to the right bank, m; None = half the bounding box across the route")
     origin: tuple[float, float, float] = Field(BOSTON_BU_BRIDGE, description="geodetic origin (lat deg, lon deg, alt m) of the file's coordinates")
@@ -39,7 +41,7 @@ def read_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
         raise ValueError(f"mesh file {str(path)!r} does not exist")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:  # noqa: BLE001 - any reader failure is a bad file
+    except Exception as exc:
         raise ValueError(f"mesh file {str(path)!r} could not be read: {type(exc).__name__}: {exc}".splitlines()[0]) from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise ValueError(f"mesh file {str(path)!r} has no triangles")
@@ -78,12 +80,19 @@ def world_from_file(path: str | os.PathLike, **params) -> World:
         wp, half = np.asarray(p.route, float), 0.5 * float(np.ptp(mesh.bounds[:, :2], axis=0).min())
     route = Route.from_waypoints(wp, p.left_m or half, p.right_m or half)
     part = Part(Path(path).stem, "other", MATERIALS[p.material], mesh)
-    return World(name=Path(path).stem, parts=[part], route=route, origin=p.origin,
-                 params={"file": str(Path(path).resolve())} | p.model_dump(mode="json"))
+    return World(
+        name=Path(path).stem, parts=[part], route=route, origin=p.origin, params={"file": str(Path(path).resolve())} | p.model_dump(mode="json")
+    )
 
 
-def add_mesh_part(world: World, path: str | os.PathLike, name: str | None = None, kind: str = "other",
-                  material: str = "concrete", transform: np.ndarray | None = None) -> World:
+def add_mesh_part(
+    world: World,
+    path: str | os.PathLike,
+    name: str | None = None,
+    kind: str = "other",
+    material: str = "concrete",
+    transform: np.ndarray | None = None,
+) -> World:
     """A new world: `world` plus the mesh in `path` as one part (kind, material, optional 4x4 transform)."""
     if kind not in PART_KINDS:
         raise ValueError(f"add_mesh_part: unknown kind {kind!r} (one of {', '.join(PART_KINDS)})")

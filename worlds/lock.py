@@ -56,7 +56,9 @@ class LockSpec(BaseModel):
         """Raise ValueError when the lock does not fit on the route or its parts overlap."""
         a, b = self.stations()
         if a <= 0 or b >= route.length:
-            raise ValueError(f"lock {self.name!r}: station_m={self.station_m} with length_m={self.length_m} is outside the route (0, {route.length:.1f})")
+            raise ValueError(
+                f"lock {self.name!r}: station_m={self.station_m} with length_m={self.length_m} is outside the route (0, {route.length:.1f})"
+            )
         g0, g1 = self.gate_stations()
         if self.gate_type == "mitre" and g0 + self.leaf_m() >= g1 - self.leaf_m():
             raise ValueError(f"lock {self.name!r}: length_m={self.length_m} too short for its mitre gates and road")
@@ -66,8 +68,9 @@ class LockSpec(BaseModel):
             raise ValueError(f"lock {self.name!r}: chamber_width_m={self.chamber_width_m} does not fit the channel ({2 * narrow:.1f} m)")
 
 
-def _block(line: Centerline, side: str, s0: float, s1: float, off_in: float, off_out: np.ndarray | float,
-           z0: float, z1: float, n: int, bottom: bool = False) -> trimesh.Trimesh:
+def _block(
+    line: Centerline, side: str, s0: float, s1: float, off_in: float, off_out: np.ndarray | float, z0: float, z1: float, n: int, bottom: bool = False
+) -> trimesh.Trimesh:
     """Solid following the route between stations s0..s1, `off_in`..`off_out` to one side, z0..z1.
 
     Inner face, top, outer face and both end caps, normals pointing out of the solid; the bottom
@@ -118,8 +121,9 @@ def build_lock(spec: LockSpec, route: Route) -> list[Part]:
             outer = np.interp(np.linspace(w0, w1, n), line.s, width) + 3.0
             walls.append(_block(line, side, w0, w1, half + (recess if in_recess else 0.0), outer, -spec.below_m, spec.top_m, n))
             if in_recess:
-                gates.append(_block(line, side, s0 + 0.2, s1 - 0.5, half + 0.15, half + 0.15 + spec.gate_thickness_m,
-                                    -spec.below_m + 0.5, spec.top_m - 0.3, n))
+                gates.append(
+                    _block(line, side, s0 + 0.2, s1 - 0.5, half + 0.15, half + 0.15 + spec.gate_thickness_m, -spec.below_m + 0.5, spec.top_m - 0.3, n)
+                )
     if spec.gate_type == "lift":
         for g in (g0, g1):
             xy, heading = route.at(g)
@@ -128,8 +132,7 @@ def build_lock(spec: LockSpec, route: Route) -> list[Part]:
             gates.append(box(np.r_[xy, spec.lift_clearance_m + height / 2], nl, (spec.chamber_width_m + 1.0, spec.gate_thickness_m, height)))
             for sign in (-1, 1):
                 tower_top = spec.lift_clearance_m + height + 1.5
-                walls.append(box(np.r_[xy + sign * nl * (half + 1.5), 0.5 * (spec.top_m + tower_top)], nl,
-                                 (3.0, 3.0, tower_top - spec.top_m)))
+                walls.append(box(np.r_[xy + sign * nl * (half + 1.5), 0.5 * (spec.top_m + tower_top)], nl, (3.0, 3.0, tower_top - spec.top_m)))
     parts = [
         Part(f"{spec.name}_walls", "lock_wall", MATERIALS["concrete"], merge(walls)),
         Part(f"{spec.name}_gates", "lock_gate", MATERIALS["steel"], merge(gates)),
@@ -156,8 +159,15 @@ def summary(spec: LockSpec) -> dict:
     """Json-able record of the lock for world.params['structures']."""
     a, b = spec.stations()
     return {
-        "name": spec.name, "type": "lock", "station_m": spec.station_m, "start_m": a, "end_m": b,
-        "chamber_width_m": spec.chamber_width_m, "gate_type": spec.gate_type,
-        "deck_height_m": spec.road_height_m, "deck_width_m": spec.road_width_m,
-        "shadow_start_m": b - spec.road_width_m, "shadow_end_m": b,
+        "name": spec.name,
+        "type": "lock",
+        "station_m": spec.station_m,
+        "start_m": a,
+        "end_m": b,
+        "chamber_width_m": spec.chamber_width_m,
+        "gate_type": spec.gate_type,
+        "deck_height_m": spec.road_height_m,
+        "deck_width_m": spec.road_width_m,
+        "shadow_start_m": b - spec.road_width_m,
+        "shadow_end_m": b,
     }

@@ -42,7 +42,7 @@ class BoatMix(BaseModel):
     sail_share: float = Field(0.5, ge=0.0, le=1.0, description="share of sailboats (the rest are motor boats)")
 
     @model_validator(mode="after")
-    def _range(self) -> "BoatMix":
+    def _range(self) -> BoatMix:
         lo, hi = self.boat_length_m
         if not 2.0 <= lo <= hi <= 30.0:
             raise ValueError(f"boat_length_m: need 2 <= min <= max <= 30, got ({lo}, {hi})")
@@ -74,9 +74,19 @@ class MooringField(BoatMix):
     jitter_deg: float = Field(20.0, ge=0.0, le=90.0, description="spread of the boats' headings about upstream, deg (0: a tidy line along a quay)")
 
 
-def build_moorings(docks: list[Dock], fields: list[MooringField], line: Centerline, edges: Edges, parts: list[Part], seed: int,
-                   density: float, route_distance: RouteDistance, clearance_m: float,
-                   with_docks: bool, with_boats: bool) -> tuple[list[Part], list[Dock]]:
+def build_moorings(
+    docks: list[Dock],
+    fields: list[MooringField],
+    line: Centerline,
+    edges: Edges,
+    parts: list[Part],
+    seed: int,
+    density: float,
+    route_distance: RouteDistance,
+    clearance_m: float,
+    with_docks: bool,
+    with_boats: bool,
+) -> tuple[list[Part], list[Dock]]:
     """Dock, pontoon and pile parts (when `with_docks`) and moored-boat parts (when `with_boats`;
     `density` scales the boats per dock and per field), and the docks placed."""
     rng = stream(seed, "worlds.moorings")
@@ -125,12 +135,17 @@ def _dock(dock: Dock, line: Centerline, rng: np.random.Generator, density: float
     deck = box(np.r_[centre, 0.5 * (lo + hi)], axis, (dock.length_m, dock.width_m, hi - lo))
     if dock.type == "pier":
         t = np.arange(-dock.length_m / 2 + 0.3, dock.length_m / 2, 4.0)
-        piles = [pipe(np.r_[p, -2.0], np.r_[p, hi + 0.5], 0.15) for s in (1.0, -1.0) for p in centre + np.outer(t, axis) + s * perp * dock.width_m / 2]
+        piles = [
+            pipe(np.r_[p, -2.0], np.r_[p, hi + 0.5], 0.15) for s in (1.0, -1.0) for p in centre + np.outer(t, axis) + s * perp * dock.width_m / 2
+        ]
         meshes = {("dock", "timber"): [deck], ("pile", "timber"): piles}
     else:
         t = np.arange(-dock.length_m / 2 + 1.0, dock.length_m / 2, 12.0)
-        piles = [pipe(np.r_[p, -2.0], np.r_[p, 3.0], 0.2, sections=8)
-                 for s in sides for p in centre + np.outer(t, axis) + s * perp * (dock.width_m / 2 + 0.25)]
+        piles = [
+            pipe(np.r_[p, -2.0], np.r_[p, 3.0], 0.2, sections=8)
+            for s in sides
+            for p in centre + np.outer(t, axis) + s * perp * (dock.width_m / 2 + 0.25)
+        ]
         meshes = {("pontoon", "timber"): [deck], ("pile", "steel"): piles}
     n = int(round(dock.boats * density))
     size = draw(rng, n, dock.boat_length_m, dock.sail_share)

@@ -31,8 +31,9 @@ class RiversideParams(BaseModel):
     docks: bool = Field(True, description="place the preset's docks, pontoons and their piles")
     moored_boats: bool = Field(True, description="place boats at the docks and in the mooring fields")
     mooring_density: float = Field(1.0, gt=0.0, le=3.0, description="multiplies the boats per dock and per mooring field")
-    route_clearance_m: float = Field(8.0, ge=2.0, le=100.0,
-                                     description="nothing placed comes closer to the route, m (a 2.4 m hull plus lateral offsets)")
+    route_clearance_m: float = Field(
+        8.0, ge=2.0, le=100.0, description="nothing placed comes closer to the route, m (a 2.4 m hull plus lateral offsets)"
+    )
 
 
 @dataclass(frozen=True)
@@ -45,8 +46,9 @@ class Riverside:
     fields: list[MooringField] = field(default_factory=list)
 
 
-def build_riverside(riverside: Riverside, route: Route, line: Centerline, channel: ChannelParams, parts: list[Part],
-                    seed: int) -> tuple[list[Part], Crowns, dict]:
+def build_riverside(
+    riverside: Riverside, route: Route, line: Centerline, channel: ChannelParams, parts: list[Part], seed: int
+) -> tuple[list[Part], Crowns, dict]:
     """Parts, crown envelopes and a json-able summary of the riverside, placed around the `parts` built so far."""
     p = riverside.params
     names = [d.name for d in riverside.docks] + [f.name for f in riverside.fields]
@@ -56,16 +58,19 @@ def build_riverside(riverside: Riverside, route: Route, line: Centerline, channe
     out: list[Part] = []
     crowns = Crowns.empty()
     if p.vegetation and riverside.trees:
-        trees, crowns = build_trees(riverside.trees, line, edges, channel, seed, p.tree_density, p.foliage, near_route,
-                                    SolidDistance(parts), p.route_clearance_m)
+        trees, crowns = build_trees(
+            riverside.trees, line, edges, channel, seed, p.tree_density, p.foliage, near_route, SolidDistance(parts), p.route_clearance_m
+        )
         out += trees
-    moorings, docks = build_moorings(riverside.docks, riverside.fields, line, edges, parts, seed, p.mooring_density, near_route,
-                                     p.route_clearance_m, p.docks, p.moored_boats)
+    moorings, docks = build_moorings(
+        riverside.docks, riverside.fields, line, edges, parts, seed, p.mooring_density, near_route, p.route_clearance_m, p.docks, p.moored_boats
+    )
     out += moorings
     summary = {
         "trees": len(crowns),
         "docks": [d.model_dump(mode="json", include={"name", "side", "station_m", "type", "orientation", "length_m"}) for d in docks],
         "mooring_fields": [f.model_dump(mode="json", include={"name", "side", "start_m", "end_m"}) for f in riverside.fields]
-        if p.moored_boats else [],
+        if p.moored_boats
+        else [],
     }
     return out, crowns, summary

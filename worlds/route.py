@@ -35,7 +35,7 @@ class Route:
         left_m: float | np.ndarray,
         right_m: float | np.ndarray,
         spacing_m: float = 1.0,
-    ) -> "Route":
+    ) -> Route:
         """Fit a C2 spline through waypoints (chord-length parameter) and sample it every `spacing_m`.
 
         left_m/right_m are scalars or one value per waypoint (interpolated along the path).
@@ -94,7 +94,7 @@ class Route:
         """
         p = np.asarray(xy, dtype=float)[..., :2]
         flat = p.reshape(-1, 2)
-        parts = [self._project(flat[i:i + 256]) for i in range(0, len(flat), 256)] or [(np.zeros(0),) * 3]
+        parts = [self._project(flat[i : i + 256]) for i in range(0, len(flat), 256)] or [(np.zeros(0),) * 3]
         station, cross, heading = (np.concatenate(col).reshape(p.shape[:-1]) for col in zip(*parts))
         return station, cross, heading
 

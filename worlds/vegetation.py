@@ -42,11 +42,13 @@ class TreeRow(BaseModel):
     spacing_m: tuple[float, float] = Field((8.0, 14.0), description="range of along-route distances between neighbouring trees, m")
     height_m: tuple[float, float] = Field((12.0, 20.0), description="range of tree heights above the ground, m")
     crown_radius_m: tuple[float, float] = Field((3.0, 6.0), description="range of horizontal crown radii, m")
-    crown_base: tuple[float, float] = Field((0.25, 0.35), description="range of the share of the height where the crown starts "
-                                            "(clear trunk below; ~0.1 for willows hanging down to the ground)")
+    crown_base: tuple[float, float] = Field(
+        (0.25, 0.35),
+        description="range of the share of the height where the crown starts (clear trunk below; ~0.1 for willows hanging down to the ground)",
+    )
 
     @model_validator(mode="after")
-    def _ranges(self) -> "TreeRow":
+    def _ranges(self) -> TreeRow:
         for key in ("setback_m", "spacing_m", "height_m", "crown_radius_m", "crown_base"):
             lo, hi = getattr(self, key)
             if not 0.0 < lo <= hi or (key == "crown_base" and hi >= 0.9):
@@ -61,14 +63,22 @@ class Foliage(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    leaf_density: float = Field(0.35, gt=0.0, le=3.0,
-                                description="facet area per crown volume, m^2/m^3 (0.35: 17% of rays cross a 10 m crown)")
+    leaf_density: float = Field(0.35, gt=0.0, le=3.0, description="facet area per crown volume, m^2/m^3 (0.35: 17% of rays cross a 10 m crown)")
     facet_m: float = Field(1.5, ge=0.2, le=3.0, description="side of the equilateral foliage facets (leaf clusters), m")
 
 
-def build_trees(rows: list[TreeRow], line: Centerline, edges: Edges, channel: ChannelParams, seed: int, density: float,
-                foliage: Foliage, route_distance: RouteDistance, solids: SolidDistance,
-                clearance_m: float) -> tuple[list[Part], Crowns]:
+def build_trees(
+    rows: list[TreeRow],
+    line: Centerline,
+    edges: Edges,
+    channel: ChannelParams,
+    seed: int,
+    density: float,
+    foliage: Foliage,
+    route_distance: RouteDistance,
+    solids: SolidDistance,
+    clearance_m: float,
+) -> tuple[list[Part], Crowns]:
     """Trunk and crown parts of every tree that stands on land, keeps `clearance_m` from the route
     with its crown, and touches no solid structure; and the crowns' envelopes."""
     rng = stream(seed, "worlds.vegetation")
@@ -146,8 +156,11 @@ def _facets(crowns: Crowns, foliage: Foliage, rng: np.random.Generator) -> trime
 def _rotation(q: np.ndarray) -> np.ndarray:
     """(N, 3, 3) rotation matrices of unit quaternions (w, x, y, z) (N, 4); uniform ones give uniform rotations."""
     w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], 1)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        1,
+    )

@@ -17,8 +17,24 @@ if TYPE_CHECKING:
     import open3d as o3d
 
 PART_KINDS = (
-    "water", "wall", "quay", "bank", "bridge_deck", "pier", "girder", "arch",
-    "lock_wall", "lock_gate", "building", "tree", "foliage", "dock", "pontoon", "pile", "moored_boat", "other",
+    "water",
+    "wall",
+    "quay",
+    "bank",
+    "bridge_deck",
+    "pier",
+    "girder",
+    "arch",
+    "lock_wall",
+    "lock_gate",
+    "building",
+    "tree",
+    "foliage",
+    "dock",
+    "pontoon",
+    "pile",
+    "moored_boat",
+    "other",
 )
 """tree: trunks (solid: they block GNSS like any solid); foliage: porous crowns (GNSS crosses them
 attenuated, see `World.crowns`); dock: fixed piers on piles; pontoon: floating docks; pile: piles
@@ -88,12 +104,12 @@ class World:
         return np.array([p.material.water for p in self.parts], dtype=bool)
 
     @cached_property
-    def raycasting_scene(self) -> "o3d.t.geometry.RaycastingScene":
+    def raycasting_scene(self) -> o3d.t.geometry.RaycastingScene:
         """Open3D (Embree) scene of `mesh`, built once per world; geometry id 0."""
         return _scene(self.mesh)
 
     @cached_property
-    def gnss_scene(self) -> "o3d.t.geometry.RaycastingScene":
+    def gnss_scene(self) -> o3d.t.geometry.RaycastingScene:
         """Scene of what blocks GNSS signals: every part but foliage (the same scene when there is none)."""
         solid = [p.mesh for p in self.parts if not p.material.foliage]
         return self.raycasting_scene if len(solid) == len(self.parts) else _scene(cast(trimesh.Trimesh, trimesh.util.concatenate(solid)))
@@ -110,7 +126,7 @@ class World:
         return [p for p in self.parts if p.kind in kinds]
 
 
-def _scene(mesh: trimesh.Trimesh) -> "o3d.t.geometry.RaycastingScene":
+def _scene(mesh: trimesh.Trimesh) -> o3d.t.geometry.RaycastingScene:
     import open3d as o3d
 
     scene = o3d.t.geometry.RaycastingScene()

@@ -47,38 +47,44 @@ class Cn0Params(BaseModel):
     model_config = ConfigDict(extra="forbid")
     bins: int = Field(9, ge=2, description="number of sin(elevation) bins over [0, 1] [9]")
     samples_per_bin: int = Field(
-        600, ge=10,
-        description="samples kept per bin [600: about 10 minutes of one satellite at 1 Hz, or a minute of a bin shared "
-        "by a few satellites at 5 Hz]",
+        600,
+        ge=10,
+        description="samples kept per bin [600: about 10 minutes of one satellite at 1 Hz, or a minute of a bin shared by a few satellites at 5 Hz]",
     )
     min_samples_per_bin: int = Field(40, ge=5, description="a bin counts once it holds this many samples [40]")
     min_bins: int = Field(3, ge=2, description="the template needs this many counting bins; until then fixes are trusted (learning) [3]")
     mid_q: float = Field(
-        0.75, gt=0.5, lt=1.0,
+        0.75,
+        gt=0.5,
+        lt=1.0,
         description="lower quantile of a bin's direct signals [0.75: with high_q the direct signals' upper part, robust "
         "to up to about a quarter of a bin's samples being NLOS]",
     )
     high_q: float = Field(
-        0.9, gt=0.5, lt=1.0,
+        0.9,
+        gt=0.5,
+        lt=1.0,
         description="upper quantile of a bin's direct signals, above mid_q [0.9: with mid_q the direct signals' upper "
         "part, robust to up to about a quarter of a bin's samples being NLOS]",
     )
     iterations: int = Field(2, ge=1, description="template fitting iterations (quantiles taken about the previous line) [2]")
     min_sigma_db: float = Field(0.5, gt=0, description="floor of the C/N0 jitter sigma, dB [0.5: receivers report C/N0 in whole dB]")
     gate_sigma: float = Field(
-        4.0, gt=0,
+        4.0,
+        gt=0,
         description="a used satellite whose C/N0 falls more than this many sigma below the template looks NLOS [4: a "
         "direct signal with Gaussian jitter exceeds it with probability 3e-5; a 1 dB jitter puts the gate at 4 dB, half "
         "a typical 8 dB reflection loss]",
     )
     hold_s: float = Field(
-        6.0, ge=0,
+        6.0,
+        ge=0,
         description="a deficit is held this long, s [6: a consumer receiver's filter halves a raw fault's effect on its "
         "output in about 4 s; 0 = no hold]",
     )
 
     @model_validator(mode="after")
-    def _ordered(self) -> "Cn0Params":
+    def _ordered(self) -> Cn0Params:
         if self.high_q <= self.mid_q:
             raise ValueError(f"high_q {self.high_q} must exceed mid_q {self.mid_q}")
         if self.min_samples_per_bin > self.samples_per_bin:
@@ -126,8 +132,13 @@ class Cn0Monitor(Monitor):
         if deficit > self.gate:
             return Verdict(False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note, on_its_own=True)
         if statistic > self.gate:
-            return Verdict(False, statistic, f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s "
-                           "(the receiver's filter still carries it)" + note, on_its_own=True)
+            return Verdict(
+                False,
+                statistic,
+                f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s "
+                "(the receiver's filter still carries it)" + note,
+                on_its_own=True,
+            )
         return Verdict(True, statistic, "C/N0 consistent with a direct signal" + note)
 
     def _deficit(self, obs: FixObservation) -> tuple[float, float | None, str, str]:

@@ -26,7 +26,8 @@ class CombinedCn0Params(CombinedParams):
     """Parameters of the 'combined_cn0' monitor: 'combined' with consistency + cn0 as its default members."""
 
     members: list[str] = Field(
-        default_factory=lambda: ["consistency", "cn0"], min_length=1,
+        default_factory=lambda: ["consistency", "cn0"],
+        min_length=1,
         description="monitor names combined by OR [consistency, cn0: the best combination measured by "
         "benchmarks/monitors.py (charles_river and canal_lock, gicp odometry): cn0 catches the fixes that use NLOS "
         "satellites, consistency the re-acquisition after an outage and displacement jumps]",

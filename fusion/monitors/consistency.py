@@ -41,9 +41,7 @@ class ConsistencyParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     window_s: float = Field(2.0, gt=0, description="the window test compares a fix with the fix about this long earlier, s [2]")
     gate_prob: float = Field(0.999, gt=0.5, lt=1.0, description="chi-square (2 dof) probability of both tests' gate [0.999, gate at 13.8]")
-    reference_max_age_s: float = Field(
-        60.0, gt=0, description="the reference is dropped and rebuilt after this long without a trusted fix, s [60]"
-    )
+    reference_max_age_s: float = Field(60.0, gt=0, description="the reference is dropped and rebuilt after this long without a trusted fix, s [60]")
     gap_s: float = Field(
         2.0, gt=0, description="a stretch at least this long without a measured fix (a blackout, or start-up) starts the guard, s [2]"
     )
@@ -56,7 +54,8 @@ class ConsistencyParams(BaseModel):
     )
     max_speed_mps: float = Field(5.0, gt=0, description="bounds the unknown motion where the odometry does not cover a step, m/s [5]")
     min_diff_sigma_m: float = Field(
-        0.3, gt=0,
+        0.3,
+        gt=0,
         description="floor of the per-axis noise of a GPS displacement, whose noise is (C_a + C_b)(1 - rho) for two fixes "
         "dt apart with errors correlated by rho = exp(-dt / correlation_s), m [0.3]",
     )
@@ -120,9 +119,9 @@ class ConsistencyMonitor(Monitor):
         for old, trusted in self._history:
             if trusted_only and not trusted:
                 continue
-            if stamp - 2.0 * self.params.window_s <= old.stamp <= stamp - 0.5 * self.params.window_s:
-                if best is None or abs(old.stamp - target) < abs(best.stamp - target):
-                    best = old
+            in_window = stamp - 2.0 * self.params.window_s <= old.stamp <= stamp - 0.5 * self.params.window_s
+            if in_window and (best is None or abs(old.stamp - target) < abs(best.stamp - target)):
+                best = old
         return best
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:

@@ -24,7 +24,7 @@ class Axis:
     values: tuple
 
     @staticmethod
-    def parse(text: str) -> "Axis":
+    def parse(text: str) -> Axis:
         """'key=v1,v2,...' with TOML values (bare words are strings; commas inside [] and {} do not split)."""
         key, sep, raw = text.partition("=")
         key = key.strip()
@@ -47,7 +47,7 @@ class Range:
     integer: bool = False
 
     @staticmethod
-    def parse(text: str) -> "Range":
+    def parse(text: str) -> Range:
         """'key=lo:hi' or 'key=lo:hi:log'."""
         key, sep, raw = text.partition("=")
         key, parts = key.strip(), raw.strip().split(":")

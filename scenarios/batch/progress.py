@@ -23,9 +23,18 @@ class SweepProgress:
     def __init__(self, console: Console, quiet: bool = False) -> None:
         self.quiet = quiet
         self.failed = 0
-        self._bar = Progress(TextColumn("[bold]sweep[/]"), BarColumn(), MofNCompleteColumn(), TextColumn("runs"),
-                             TextColumn("{task.fields[failed]}"), TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(),
-                             console=console, disable=quiet)
+        self._bar = Progress(
+            TextColumn("[bold]sweep[/]"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("runs"),
+            TextColumn("{task.fields[failed]}"),
+            TimeElapsedColumn(),
+            TextColumn("eta"),
+            TimeRemainingColumn(),
+            console=console,
+            disable=quiet,
+        )
         self._task = self._bar.add_task("sweep", total=None, failed="")
 
     def start(self, to_run: int, skipped: int) -> None:
@@ -38,11 +47,12 @@ class SweepProgress:
         if not self.quiet:
             params = ", ".join(f"{k.removeprefix('param.')}={v}" for k, v in row.items() if k.startswith("param."))
             mark = "[green]ok[/]" if row["status"] == "ok" else f"[bold red]failed[/]: {row['reason']}"
-            self._bar.console.print(f"{mark} {row['scenario']} seed {row['seed']}{' ' + params if params else ''} "
-                                    f"({row['wall_s']:.0f} s)", highlight=False)
+            self._bar.console.print(
+                f"{mark} {row['scenario']} seed {row['seed']}{' ' + params if params else ''} ({row['wall_s']:.0f} s)", highlight=False
+            )
         self._bar.update(self._task, advance=1, failed=f"[red]{self.failed} failed[/]" if self.failed else "")
 
-    def __enter__(self) -> "SweepProgress":
+    def __enter__(self) -> SweepProgress:
         self._bar.start()
         return self
 
@@ -52,8 +62,7 @@ class SweepProgress:
 
 def summary(result: SweepResult, plan: SweepPlan, objective: str | None, minimize: bool, plots: list[Path]) -> Group:
     """Counts, failures, the best parameter combinations by the objective, and where the table and plots are."""
-    parts: list = [Text(f"{len(result.rows)} runs in the table: {result.ran} run now, {result.skipped} already done, "
-                        f"{len(result.failed)} failed")]
+    parts: list = [Text(f"{len(result.rows)} runs in the table: {result.ran} run now, {result.skipped} already done, {len(result.failed)} failed")]
     if result.failed:
         failures = Table(title="failed runs", box=box.SIMPLE_HEAD)
         for col in ("scenario", "seed", "reason"):
@@ -67,8 +76,13 @@ def summary(result: SweepResult, plan: SweepPlan, objective: str | None, minimiz
         for col, justify in (("scenario", "left"), ("parameters", "left"), ("median", "right"), ("min .. max", "right"), ("seeds", "right")):
             best.add_column(col, justify=justify, overflow="fold")
         for g in ranked[:TOP]:
-            best.add_row(g.scenario, ", ".join(f"{k}={_short(v)}" for k, v in g.params.items()) or "-", f"{g.median:.4g}",
-                         f"{min(g.values):.4g} .. {max(g.values):.4g}", str(len(g.values)))
+            best.add_row(
+                g.scenario,
+                ", ".join(f"{k}={_short(v)}" for k, v in g.params.items()) or "-",
+                f"{g.median:.4g}",
+                f"{min(g.values):.4g} .. {max(g.values):.4g}",
+                str(len(g.values)),
+            )
         parts.append(best if ranked else Text(f"no finished run has a value of {objective}"))
     parts.append(Text(f"table: {result.out_dir / 'results.parquet'} (and results.csv)"))
     if plots:

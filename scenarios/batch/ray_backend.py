@@ -70,8 +70,14 @@ def run_on_ray(jobs: list, workers: int, address: str | None) -> Iterator[JobRes
     ray = import_ray()
     started = not ray.is_initialized()
     if started:
-        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
-                 log_to_driver=False, logging_level=logging.ERROR, configure_logging=True)
+        ray.init(
+            address=address,
+            num_cpus=None if address else workers,
+            include_dashboard=False,
+            log_to_driver=False,
+            logging_level=logging.ERROR,
+            configure_logging=True,
+        )
     task = ray.remote(num_cpus=1, max_retries=0)(run_packed)
     pending = {task.remote(job): i for i, job in enumerate(jobs)}
     try:

@@ -84,9 +84,20 @@ def _run_case(index: int, job: Job, fast: bool, out_dir: str, workers: int, resu
         if fast:
             scenario = scenario.fast_variant()
         result = run(scenario, out_dir, workers=workers)
-        results.put((index, CaseResult(scenario.name, str(result.out_dir), time.perf_counter() - start,
-                                       result.metrics["expectations"], realtime_factor=result.metrics["run"]["realtime_factor"],
-                                       seed=job.seed, scenario_hash=scenario.setup_hash)))
+        results.put(
+            (
+                index,
+                CaseResult(
+                    scenario.name,
+                    str(result.out_dir),
+                    time.perf_counter() - start,
+                    result.metrics["expectations"],
+                    realtime_factor=result.metrics["run"]["realtime_factor"],
+                    seed=job.seed,
+                    scenario_hash=scenario.setup_hash,
+                ),
+            )
+        )
     except BaseException as exc:  # the suite records any failure of one scenario and goes on
         results.put((index, CaseResult(job.name, out_dir, time.perf_counter() - start, error=f"{type(exc).__name__}: {exc}", seed=job.seed)))
 
@@ -125,8 +136,9 @@ def run_suite(
                 elapsed = time.perf_counter() - started
                 if not proc.is_alive() and results.empty():
                     running.pop(index)
-                    case = CaseResult(job.name, str(out_dir / job.where), elapsed, error=f"scenario process died (exit code {proc.exitcode})",
-                                      seed=job.seed)
+                    case = CaseResult(
+                        job.name, str(out_dir / job.where), elapsed, error=f"scenario process died (exit code {proc.exitcode})", seed=job.seed
+                    )
                     _finish(done, index, case, on_done)
                 elif elapsed > timeout_s:
                     stop(proc)
@@ -148,8 +160,10 @@ def _finish(done: dict, index: int, case: CaseResult, on_done) -> None:
 def write_summary(cases: list[CaseResult], path: Path, comparison: Comparison | None = None) -> None:
     """suite.json: every case with its expectations (what `riverbench report` reads over a suite) and, against a
     baseline, the comparison (counts, both sides' provenance, every metric that moved)."""
-    summary = {"cases": [{**asdict(c), "passed": c.passed} for c in cases],
-               "baseline_comparison": comparison.as_dict() if comparison is not None else None}
+    summary = {
+        "cases": [{**asdict(c), "passed": c.passed} for c in cases],
+        "baseline_comparison": comparison.as_dict() if comparison is not None else None,
+    }
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(summary, indent=2) + "\n")
 
@@ -216,8 +230,10 @@ def regression_line(v: MetricVerdict) -> str:
     now = [x for x in v.now if x == x]
     if not base or not now:
         return f"baseline {_g(base)}, now {_g(now)} (measured on one side only)"
-    return (f"baseline {_g(base)} [{min(base):.4g}..{max(base):.4g}], now {_g(now)} "
-            f"({v.change:+.4g}, threshold {v.threshold:.3g}, seeds {', '.join(map(str, v.seeds))})")
+    return (
+        f"baseline {_g(base)} [{min(base):.4g}..{max(base):.4g}], now {_g(now)} "
+        f"({v.change:+.4g}, threshold {v.threshold:.3g}, seeds {', '.join(map(str, v.seeds))})"
+    )
 
 
 def _g(values: list[float]) -> str:

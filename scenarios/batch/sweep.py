@@ -205,7 +205,6 @@ def rank(rows: list[dict], objective: str, minimize: bool = True) -> list[Ranked
     return sorted(groups.values(), key=lambda g: g.median if minimize else -g.median)
 
 
-
 def write_plots(result: SweepResult, plan: SweepPlan, objective: str | None, extra: list[str]) -> list[Path]:
     """plots/: the objective, each --plot metric, or by default every estimator's APE p95 and matcher's success, against each swept key."""
     from scenarios.batch import sweep_plots

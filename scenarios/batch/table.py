@@ -47,8 +47,14 @@ def row(point, status: str, wall_s: float, run_dir: str, metrics: dict | None = 
     """The table row of one finished (or failed) run of a sweep point."""
     outcomes = (metrics or {}).get("expectations", [])
     return {
-        "scenario": point.name, "scenario_hash": point.hash, "seed": point.seed, "status": status, "reason": reason,
-        "wall_s": wall_s, "run_dir": run_dir, "passed": all(o.get("pass") for o in outcomes) if metrics else None,
+        "scenario": point.name,
+        "scenario_hash": point.hash,
+        "seed": point.seed,
+        "status": status,
+        "reason": reason,
+        "wall_s": wall_s,
+        "run_dir": run_dir,
+        "passed": all(o.get("pass") for o in outcomes) if metrics else None,
         **{PARAM_PREFIX + k: v for k, v in point.params.items()},
         **(flatten(metrics) if metrics else {}),
     }

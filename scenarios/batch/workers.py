@@ -64,7 +64,7 @@ class _Worker:
     job: int | None = None
 
     @staticmethod
-    def spawn(ctx) -> "_Worker":
+    def spawn(ctx) -> _Worker:
         parent, child = ctx.Pipe()
         proc = ctx.Process(target=_serve, args=(child,), daemon=False)  # not a daemon: a run may start its own workers
         proc.start()
@@ -104,7 +104,7 @@ def run_jobs(fn: Callable, args: list, workers: int) -> Iterator[JobResult]:
                     pool[i] = _give(ctx, w, index, (fn, arg))
             busy = [w for w in pool if w.job is not None]
             wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout=1.0)
-            for i, w in enumerate(pool):
+            for w in pool:
                 if w.job is None:
                     continue
                 if w.conn.poll():

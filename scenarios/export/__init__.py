@@ -65,8 +65,9 @@ class ExportResult:
     counts: dict[str, int] = field(default_factory=dict)
 
 
-def export(source: str | Path, fmt: str, out: str | Path, *, set: list[str] | None = None, seed: int | None = None,
-           progress: Progress | None = None) -> ExportResult:
+def export(
+    source: str | Path, fmt: str, out: str | Path, *, set: list[str] | None = None, seed: int | None = None, progress: Progress | None = None
+) -> ExportResult:
     """Simulate `source` (library name, .toml or run directory) and write it as `fmt` at `out`, all or nothing."""
     if fmt not in FORMATS:
         raise ValueError(f"unknown export format {fmt!r}; the formats are: {', '.join(FORMATS)}")
@@ -75,7 +76,7 @@ def export(source: str | Path, fmt: str, out: str | Path, *, set: list[str] | No
     start = time.perf_counter()
     info, frames = open_stream(scenarios.load(scenario_file(source), set=set, seed=seed))
     metered = _Metered(frames, info.scans, progress)
-    with (staged_dir(out) if FORMATS[fmt].directory else atomic_path(out)) as tmp:
+    with staged_dir(out) if FORMATS[fmt].directory else atomic_path(out) as tmp:
         counts = FORMATS[fmt].write(info, metered, tmp)
     return ExportResult(out, fmt, metered.done, time.perf_counter() - start, counts)
 

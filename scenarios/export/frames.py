@@ -68,8 +68,18 @@ def open_stream(scenario: Scenario) -> tuple[StreamInfo, Iterator[Frame]]:
     stack = assemble(scenario)
     world, lidar, run, t_start, t_end = stack.world, stack.lidar, stack.vessel_run, stack.t_start, stack.t_end
     n_scans = int(np.floor((t_end - t_start) / lidar.revolution_s + 1e-9))
-    info = StreamInfo(scenario.name, t_start, t_end, n_scans, scenario.lidar.rate_hz, scenario.gnss.rate_hz,
-                      tuple(world.origin), scenario.gnss.epoch_utc, run.trajectory.mount.copy(), tuple(scenario.gnss.antenna_offset_m))
+    info = StreamInfo(
+        scenario.name,
+        t_start,
+        t_end,
+        n_scans,
+        scenario.lidar.rate_hz,
+        scenario.gnss.rate_hz,
+        tuple(world.origin),
+        scenario.gnss.epoch_utc,
+        run.trajectory.mount.copy(),
+        tuple(scenario.gnss.antenna_offset_m),
+    )
     return info, _frames(_events(scenario, run, t_start), run.trajectory)
 
 

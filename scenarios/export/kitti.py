@@ -48,8 +48,7 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path) -> dict[str, int
         points += len(frame.scan.points)
     write_calib(sequence / "calib.txt")
     np.savetxt(sequence / "times.txt", np.asarray(stamps) - (stamps[0] if stamps else 0.0), fmt="%.6f")
-    np.savetxt(out / "poses" / "00.txt", camera_poses(np.asarray(poses).reshape(-1, 4, 4))[:, :3].reshape(-1, 12),
-               fmt="%.12e", delimiter=" ")
+    np.savetxt(out / "poses" / "00.txt", camera_poses(np.asarray(poses).reshape(-1, 4, 4))[:, :3].reshape(-1, 12), fmt="%.12e", delimiter=" ")
     return {"points": points}
 
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterable
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +64,7 @@ DATA = np.dtype([("block", BLOCK, (BLOCKS,)), ("stamp", "<u4"), ("return_mode", 
 POSITION = np.dtype([("imu", "V198"), ("stamp", "<u4"), ("pps", "u1"), ("reserved", "V3"), ("nmea", "S306")])
 HEADERS = 14 + 20 + 8  # Ethernet, IPv4, UDP
 PCAP_HEADER = struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1)  # microsecond times, Ethernet
-UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 def write(info: StreamInfo, frames: Iterable[Frame], path: Path) -> dict[str, int]:
@@ -159,8 +159,10 @@ def position_packets(fixes: list[GnssFix], times: np.ndarray, stamps: np.ndarray
 def records(payloads: np.ndarray, unix_us: np.ndarray, port: int) -> np.ndarray:
     """pcap records of the payloads: record header, then Ethernet, IPv4 and UDP from the sensor to broadcast."""
     size = payloads.dtype.itemsize
-    out = np.zeros(len(payloads), [("ts_sec", "<u4"), ("ts_usec", "<u4"), ("incl_len", "<u4"), ("orig_len", "<u4"),
-                                   ("headers", "u1", (HEADERS,)), ("payload", payloads.dtype)])
+    out = np.zeros(
+        len(payloads),
+        [("ts_sec", "<u4"), ("ts_usec", "<u4"), ("incl_len", "<u4"), ("orig_len", "<u4"), ("headers", "u1", (HEADERS,)), ("payload", payloads.dtype)],
+    )
     out["ts_sec"], out["ts_usec"] = np.divmod(unix_us, 1_000_000)
     out["incl_len"] = out["orig_len"] = HEADERS + size
     out["headers"] = np.frombuffer(headers(port, size), np.uint8)

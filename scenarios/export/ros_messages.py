@@ -19,7 +19,7 @@ Time: ROS time = the scenario's UTC epoch + the simulation stamp, in integer nan
 
 from __future__ import annotations
 
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -34,10 +34,16 @@ GPS_FRAME = "gps"
 BASE_FRAME = "base_link"
 MAP_FRAME = "map"
 SENTENCE_MSG = "std_msgs/Header header\nstring sentence\n"
-POINT = np.dtype({"names": ["x", "y", "z", "intensity", "ring", "time"],
-                  "formats": ["<f4", "<f4", "<f4", "<f4", "<u2", "<f4"], "offsets": [0, 4, 8, 12, 16, 18], "itemsize": 22})
+POINT = np.dtype(
+    {
+        "names": ["x", "y", "z", "intensity", "ring", "time"],
+        "formats": ["<f4", "<f4", "<f4", "<f4", "<u2", "<f4"],
+        "offsets": [0, 4, 8, 12, 16, 18],
+        "itemsize": 22,
+    }
+)
 UERE_M = 4.0
-UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 def typestore() -> Typestore:
@@ -65,8 +71,16 @@ def point_cloud(store: Typestore, ns: int, scan: Scan):
     fields = [field(name=name, offset=offset, datatype=kinds[dtype], count=1) for name, (dtype, offset) in POINT.fields.items()]
     data = scan.points[list(POINT.names)].astype(POINT)
     return store.types["sensor_msgs/msg/PointCloud2"](
-        header=header(store, ns, LIDAR_FRAME), height=1, width=len(data), fields=fields, is_bigendian=False,
-        point_step=POINT.itemsize, row_step=POINT.itemsize * len(data), data=data.view(np.uint8), is_dense=True)
+        header=header(store, ns, LIDAR_FRAME),
+        height=1,
+        width=len(data),
+        fields=fields,
+        is_bigendian=False,
+        point_step=POINT.itemsize,
+        row_step=POINT.itemsize * len(data),
+        data=data.view(np.uint8),
+        is_dense=True,
+    )
 
 
 def nav_sat_fix(store: Typestore, ns: int, fix: GnssFix):
@@ -75,10 +89,15 @@ def nav_sat_fix(store: Typestore, ns: int, fix: GnssFix):
     status = store.types["sensor_msgs/msg/NavSatStatus"]
     fixed = fix.quality == 1
     variances = [(fix.hdop * UERE_M) ** 2 / 2.0, (fix.hdop * UERE_M) ** 2 / 2.0, (fix.vdop * UERE_M) ** 2] if fixed else [0.0] * 3
-    return msg(header=header(store, ns, GPS_FRAME),
-               status=status(status=status.STATUS_FIX if fixed else status.STATUS_NO_FIX, service=status.SERVICE_GPS),
-               latitude=fix.lat, longitude=fix.lon, altitude=fix.alt, position_covariance=np.diag(variances).ravel(),
-               position_covariance_type=msg.COVARIANCE_TYPE_APPROXIMATED if fixed else msg.COVARIANCE_TYPE_UNKNOWN)
+    return msg(
+        header=header(store, ns, GPS_FRAME),
+        status=status(status=status.STATUS_FIX if fixed else status.STATUS_NO_FIX, service=status.SERVICE_GPS),
+        latitude=fix.lat,
+        longitude=fix.lon,
+        altitude=fix.alt,
+        position_covariance=np.diag(variances).ravel(),
+        position_covariance_type=msg.COVARIANCE_TYPE_APPROXIMATED if fixed else msg.COVARIANCE_TYPE_UNKNOWN,
+    )
 
 
 def sentences(store: Typestore, ns: int, fix: GnssFix) -> list:
@@ -97,8 +116,10 @@ def transform(store: Typestore, ns: int, parent: str, child: str, pose: np.ndarr
     x, y, z = pose[:3, 3]
     translation = store.types["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
     return store.types["geometry_msgs/msg/TransformStamped"](
-        header=header(store, ns, parent), child_frame_id=child,
-        transform=store.types["geometry_msgs/msg/Transform"](translation=translation, rotation=quaternion(store, pose)))
+        header=header(store, ns, parent),
+        child_frame_id=child,
+        transform=store.types["geometry_msgs/msg/Transform"](translation=translation, rotation=quaternion(store, pose)),
+    )
 
 
 def tf_message(store: Typestore, transforms: list):
@@ -113,8 +134,12 @@ def odometry(store: Typestore, ns: int, pose: np.ndarray):
     position = types["geometry_msgs/msg/Point"](x=x, y=y, z=z)
     zero = types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
     return types["nav_msgs/msg/Odometry"](
-        header=header(store, ns, MAP_FRAME), child_frame_id=BASE_FRAME,
+        header=header(store, ns, MAP_FRAME),
+        child_frame_id=BASE_FRAME,
         pose=types["geometry_msgs/msg/PoseWithCovariance"](
-            pose=types["geometry_msgs/msg/Pose"](position=position, orientation=quaternion(store, pose)), covariance=np.zeros(36)),
+            pose=types["geometry_msgs/msg/Pose"](position=position, orientation=quaternion(store, pose)), covariance=np.zeros(36)
+        ),
         twist=types["geometry_msgs/msg/TwistWithCovariance"](
-            twist=types["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)))
+            twist=types["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
+        ),
+    )

@@ -67,8 +67,9 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
     counts = {"messages": 0, "points": 0, "fixes": 0}
     with Writer(bag, version=8, storage_plugin=storage) as writer:
         flush = streaming(writer, storage)
-        connections = {topic: writer.add_connection(topic, msgtype, typestore=store, offered_qos_profiles=qos)
-                       for topic, (msgtype, qos) in TOPICS.items()}
+        connections = {
+            topic: writer.add_connection(topic, msgtype, typestore=store, offered_qos_profiles=qos) for topic, (msgtype, qos) in TOPICS.items()
+        }
         for batch in chain([static_messages(store, info)], (frame_messages(store, info, frame) for frame in frames)):
             for topic, ns, msg in batch:
                 writer.write(connections[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
@@ -87,16 +88,29 @@ def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, 
     ns = msgs.ros_ns(info.epoch_utc, info.t_start)
     antenna = np.eye(4)
     antenna[:3, 3] = info.antenna_offset_m
-    return [("/tf_static", ns, msgs.tf_message(store, [msgs.transform(store, ns, msgs.BASE_FRAME, msgs.LIDAR_FRAME, info.mount),
-                                                       msgs.transform(store, ns, msgs.BASE_FRAME, msgs.GPS_FRAME, antenna)]))]
+    return [
+        (
+            "/tf_static",
+            ns,
+            msgs.tf_message(
+                store,
+                [
+                    msgs.transform(store, ns, msgs.BASE_FRAME, msgs.LIDAR_FRAME, info.mount),
+                    msgs.transform(store, ns, msgs.BASE_FRAME, msgs.GPS_FRAME, antenna),
+                ],
+            ),
+        )
+    ]
 
 
 def frame_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
     """The frame's messages in time order: its cloud and true pose at the scan's stamp, each fix and its sentences at theirs."""
     ns = msgs.ros_ns(info.epoch_utc, frame.stamp)
-    scan = [("/velodyne_points", ns, msgs.point_cloud(store, ns, frame.scan)),
-            ("/tf", ns, msgs.tf_message(store, [msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)])),
-            ("/odom/ground_truth", ns, msgs.odometry(store, ns, frame.base_pose))]
+    scan = [
+        ("/velodyne_points", ns, msgs.point_cloud(store, ns, frame.scan)),
+        ("/tf", ns, msgs.tf_message(store, [msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)])),
+        ("/odom/ground_truth", ns, msgs.odometry(store, ns, frame.base_pose)),
+    ]
     gnss = []
     for fix in frame.fixes:
         t = msgs.ros_ns(info.epoch_utc, fix.stamp)

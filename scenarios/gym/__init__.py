@@ -1,7 +1,7 @@
 """The Gymnasium environment: importing this package registers `riverbench/RiverNav-v0`.
 
-    import gymnasium, scenarios.gym
-    env = gymnasium.make("riverbench/RiverNav-v0", scenario="harvard_beam_bridge")
+import gymnasium, scenarios.gym
+env = gymnasium.make("riverbench/RiverNav-v0", scenario="harvard_beam_bridge")
 """
 
 from gymnasium.envs.registration import register, registry

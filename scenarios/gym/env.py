@@ -75,9 +75,15 @@ class RiverNavEnv(gymnasium.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, scenario: str | os.PathLike | Scenario = "quickstart", estimator: str | None = None,
-                 azimuth_bins: int = 90, reward: RewardConfig | dict | None = None, render_mode: str | None = None,
-                 set: list[str] | tuple[str, ...] = ()):
+    def __init__(
+        self,
+        scenario: str | os.PathLike | Scenario = "quickstart",
+        estimator: str | None = None,
+        azimuth_bins: int = 90,
+        reward: RewardConfig | dict | None = None,
+        render_mode: str | None = None,
+        set: list[str] | tuple[str, ...] = (),
+    ):
         import scenarios
 
         base = scenario if isinstance(scenario, Scenario) else scenarios.load(scenario, set=list(set))
@@ -177,11 +183,15 @@ class RiverNavEnv(gymnasium.Env):
         estimate = ep.feed.pose_of(self.estimator)
         log = ep.run.watch.log
         info = {
-            "t": t, "true_pose": true_pose, "true_station_m": float(station), "true_cross_track_m": float(cross),
+            "t": t,
+            "true_pose": true_pose,
+            "true_station_m": float(station),
+            "true_cross_track_m": float(cross),
             "true_heading_error_rad": wrap_angle(yaw - float(heading)),
             "clearance_m": clearance.distance_m,
             "nearest_part": self.world.parts[clearance.part].name if clearance.part >= 0 else "",
-            "outcome": log.outcome, "collision_part": log.contact.part if log.contact else "",
+            "outcome": log.outcome,
+            "collision_part": log.contact.part if log.contact else "",
         }
         # errors only when there is something to compare (NaN would make equal episodes compare unequal)
         if np.isfinite(estimate).all():
@@ -198,8 +208,7 @@ class RiverNavEnv(gymnasium.Env):
         ep = self._require_episode()
         if self._renderer is None:
             self._renderer = TopView(self.world)
-        return self._renderer.draw(ep.run.trajectory, ep.run.loop.t, ep.feed.pose_of(self.estimator), ep.last_fix, ep.last_scan,
-                                   ep.run.watch.log)
+        return self._renderer.draw(ep.run.trajectory, ep.run.loop.t, ep.feed.pose_of(self.estimator), ep.last_fix, ep.last_scan, ep.run.watch.log)
 
     def close(self):
         self._close_episode()

@@ -19,14 +19,16 @@ MAX_SATS = 32.0
 def space(azimuth_bins: int, max_range_m: float) -> spaces.Dict:
     """The observation space (see RiverNavEnv for the meaning of every entry)."""
     big = np.float32(1e6)
-    return spaces.Dict({
-        "estimate": spaces.Box(-big, big, (3,), np.float32),
-        "estimate_cov": spaces.Box(-big, big, (3, 3), np.float32),
-        "estimate_valid": spaces.Discrete(2),
-        "gps": spaces.Box(np.array([-big, -big, 0.0, 0.0, 0.0], np.float32), np.array([big, big, 99.99, MAX_SATS, big], np.float32)),
-        "gps_quality": spaces.Discrete(10),
-        "lidar": spaces.Box(0.0, np.float32(max_range_m), (32, azimuth_bins), np.float32),
-    })
+    return spaces.Dict(
+        {
+            "estimate": spaces.Box(-big, big, (3,), np.float32),
+            "estimate_cov": spaces.Box(-big, big, (3, 3), np.float32),
+            "estimate_valid": spaces.Discrete(2),
+            "gps": spaces.Box(np.array([-big, -big, 0.0, 0.0, 0.0], np.float32), np.array([big, big, 99.99, MAX_SATS, big], np.float32)),
+            "gps_quality": spaces.Discrete(10),
+            "lidar": spaces.Box(0.0, np.float32(max_range_m), (32, azimuth_bins), np.float32),
+        }
+    )
 
 
 def route_frame(route: Route, start_station_m: float, xy: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
@@ -56,8 +58,10 @@ def gps(route: Route, start_station_m: float, fix, now: float) -> dict:
     has_position = fix.quality != 0 and np.isfinite(np.asarray(fix.enu, dtype=float)).all()
     rel = route_frame(route, start_station_m, np.asarray(fix.enu)[:2], 0.0)[0] if has_position else np.zeros(3)
     hdop = float(fix.hdop) if np.isfinite(fix.hdop) else 99.99
-    return {"gps": np.array([rel[0], rel[1], min(hdop, 99.99), min(float(fix.num_sats), MAX_SATS), max(now - fix.stamp, 0.0)], np.float32),
-            "gps_quality": int(fix.quality)}
+    return {
+        "gps": np.array([rel[0], rel[1], min(hdop, 99.99), min(float(fix.num_sats), MAX_SATS), max(now - fix.stamp, 0.0)], np.float32),
+        "gps_quality": int(fix.quality),
+    }
 
 
 def range_image(points: np.ndarray, azimuth_bins: int, max_range_m: float) -> np.ndarray:

@@ -8,9 +8,9 @@ import math
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import PolyCollection  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.collections import PolyCollection
 
 VIEW_M = 80.0
 """Side of the square view centred on the vessel."""
@@ -29,8 +29,11 @@ class TopView:
         self.lo, self.hi = self.triangles.min(axis=1), self.triangles.max(axis=1)
         palette, kinds = plt.get_cmap("tab20"), sorted({p.kind for p in solid})
         # overhead parts (decks, girders: nothing below 2 m) are drawn faint so that what the hull can hit shows through
-        self.colours = np.array([(*palette(kinds.index(p.kind) % 20)[:3], 0.15 if p.mesh.bounds[0, 2] > 2.0 else 0.6)
-                                 for p in solid]) if solid else np.zeros((0, 4))
+        self.colours = (
+            np.array([(*palette(kinds.index(p.kind) % 20)[:3], 0.15 if p.mesh.bounds[0, 2] > 2.0 else 0.6) for p in solid])
+            if solid
+            else np.zeros((0, 4))
+        )
         self.route = world.route
         self.fig, self.ax = plt.subplots(figsize=(PIXELS / 100, PIXELS / 100), dpi=100)
 
@@ -74,7 +77,15 @@ class TopView:
 
 def _hull(ax, pose: np.ndarray, colour: str, label: str, length: float = 4.9, beam: float = 2.4) -> None:
     """The WAM-V footprint at a pose, with a bow mark."""
-    corners = np.array([[length / 2, beam / 2], [-length / 2, beam / 2], [-length / 2, -beam / 2], [length / 2, -beam / 2],
-                        [length / 2 + 1.0, 0.0], [length / 2, beam / 2]])
+    corners = np.array(
+        [
+            [length / 2, beam / 2],
+            [-length / 2, beam / 2],
+            [-length / 2, -beam / 2],
+            [length / 2, -beam / 2],
+            [length / 2 + 1.0, 0.0],
+            [length / 2, beam / 2],
+        ]
+    )
     xy = corners @ pose[:2, :2].T + pose[:2, 3]
     ax.fill(xy[:, 0], xy[:, 1], facecolor="none", edgecolor=colour, lw=1.5, label=label)

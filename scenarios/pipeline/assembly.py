@@ -43,8 +43,12 @@ def assemble(scenario: Scenario, world: worlds.World | None = None) -> Assembly:
     """World (loaded unless given: a gym env reuses its own), sensors and vessel of `scenario`, seeded by scenario.seed."""
     world = world if world is not None else worlds.load(scenario.world, **scenario.world_params)
     planned = sim.Trajectory(world, seed=scenario.seed, **scenario.vessel.model_dump(exclude={"seed"}))
-    lidar = sim.HDL32E(seed=scenario.seed, **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
-                       rate_hz=scenario.lidar.rate_hz, range_noise_m=scenario.lidar.range_noise_m)
+    lidar = sim.HDL32E(
+        seed=scenario.seed,
+        **scenario.lidar.model_dump(exclude={"seed", "rate_hz", "range_noise_m"}),
+        rate_hz=scenario.lidar.rate_hz,
+        range_noise_m=scenario.lidar.range_noise_m,
+    )
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
     t_start, t_end = scenario.stretch.times(planned)
     vessel_run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
@@ -53,8 +57,7 @@ def assemble(scenario: Scenario, world: worlds.World | None = None) -> Assembly:
 
 def recorder(scenario: Scenario, mount: np.ndarray | None = None) -> Recorder:
     """A recorder of the scenario's matchers and estimators; `mount` base_link<-lidar, default the scenario's [vessel] mount."""
-    return Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators],
-                    mount_matrix(scenario.vessel) if mount is None else mount)
+    return Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], mount_matrix(scenario.vessel) if mount is None else mount)
 
 
 def matcher_setups(scenario: Scenario) -> list[MatcherSetup]:

@@ -22,8 +22,9 @@ from sim.driven_trajectory import DrivenTrajectory
 class ClosedLoop:
     """`step(commands)` drives one revolution and returns its events (scan first, then the fixes in it)."""
 
-    def __init__(self, world, trajectory: DrivenTrajectory, lidar, receiver, watch: VesselWatch,
-                 t_start: float, end_station_m: float, t_limit: float):
+    def __init__(
+        self, world, trajectory: DrivenTrajectory, lidar, receiver, watch: VesselWatch, t_start: float, end_station_m: float, t_limit: float
+    ):
         self.world, self.trajectory, self.lidar, self.receiver, self.watch = world, trajectory, lidar, receiver, watch
         self.t = float(t_start)
         self.t_start, self.end_station_m, self.t_limit = float(t_start), float(end_station_m), float(t_limit)

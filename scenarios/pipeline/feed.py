@@ -49,8 +49,15 @@ class RunInterrupted(RuntimeError):
 class Feed:
     """drive(events), or push(event) for each event in time order then finish(); `recorder` holds what came out."""
 
-    def __init__(self, scenario: Scenario, pool: MatcherPool, recorder: Recorder, base_pose: Callable[[float], np.ndarray],
-                 t_start: float, log_fix: Callable[[object], None] | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        pool: MatcherPool,
+        recorder: Recorder,
+        base_pose: Callable[[float], np.ndarray],
+        t_start: float,
+        log_fix: Callable[[object], None] | None = None,
+    ) -> None:
         """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
         self.log_fix = log_fix
@@ -141,8 +148,9 @@ class Feed:
         fix = event.fix
         verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp)
         # a failed estimator raises no alarm: its fixes count as trusted with no statistic
-        self.recorder.fix(fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan)
-                                for eid in self.estimators})
+        self.recorder.fix(
+            fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan) for eid in self.estimators}
+        )
         if self.log_fix is not None:
             self.log_fix(event)
 

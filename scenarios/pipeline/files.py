@@ -54,8 +54,16 @@ def write_gps_csv(path: Path, rec: RunRecord, truth: bool = True) -> None:
         w = csv.writer(handle)
         w.writerow(header)
         for i in range(len(f.t)):
-            row = [f"{f.t[i]:.3f}", int(f.quality[i]), *_fmt(f.enu[i], 3), _fmt1(f.lat[i], 9), _fmt1(f.lon[i], 9),
-                   _fmt1(f.alt[i], 3), int(f.num_sats[i]), _fmt1(f.hdop[i], 2)]
+            row = [
+                f"{f.t[i]:.3f}",
+                int(f.quality[i]),
+                *_fmt(f.enu[i], 3),
+                _fmt1(f.lat[i], 9),
+                _fmt1(f.lon[i], 9),
+                _fmt1(f.alt[i], 3),
+                int(f.num_sats[i]),
+                _fmt1(f.hdop[i], 2),
+            ]
             if truth:
                 row += [*_fmt(f.error[i], 3), _fmt1(err_h[i], 3), _fmt1(open_sky[i], 3), _fmt1(added[i], 3), int(f.nlos_used[i])]
             for e in eids:
@@ -98,8 +106,7 @@ def write_vessel_csv(path: Path, log) -> None:
         w = csv.writer(handle)
         w.writerow(["t", "x", "y", "yaw_deg", "station_m", "cross_track_m", "clearance_m", "nearest_part", "cmd_left", "cmd_right"])
         for t, x, y, yaw, station, cross, clearance, part, left, right in log.rows:
-            w.writerow([f"{t:.3f}", *_fmt((x, y), 3), f"{np.degrees(yaw):.3f}", *_fmt((station, cross, clearance), 3), part,
-                        *_fmt((left, right), 4)])
+            w.writerow([f"{t:.3f}", *_fmt((x, y), 3), f"{np.degrees(yaw):.3f}", *_fmt((station, cross, clearance), 3), part, *_fmt((left, right), 4)])
 
 
 def write_movers_csv(path: Path, log: TrafficLog) -> None:
@@ -109,8 +116,9 @@ def write_movers_csv(path: Path, log: TrafficLog) -> None:
         w.writerow(["t", "id", "label", "x", "y", "yaw_deg"])
         for t, poses in zip(log.stamps, log.poses):
             for m, (mid, p) in enumerate(zip(log.traffic.ids, poses)):
-                w.writerow([f"{t:.3f}", mid, log.first_label + m, f"{p[0, 3]:.3f}", f"{p[1, 3]:.3f}",
-                            f"{np.degrees(np.arctan2(p[1, 0], p[0, 0])):.3f}"])
+                w.writerow(
+                    [f"{t:.3f}", mid, log.first_label + m, f"{p[0, 3]:.3f}", f"{p[1, 3]:.3f}", f"{np.degrees(np.arctan2(p[1, 0], p[0, 0])):.3f}"]
+                )
 
 
 def _fmt1(value: float, digits: int) -> str:

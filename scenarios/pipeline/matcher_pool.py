@@ -51,7 +51,7 @@ class _Unbuilt:
         raise RuntimeError(self.why)
 
 
-def _build(setup: MatcherSetup) -> "matchers_pkg.Matcher | _Unbuilt":
+def _build(setup: MatcherSetup) -> matchers_pkg.Matcher | _Unbuilt:
     """The matcher `setup` describes, or an _Unbuilt saying why its constructor raised."""
     try:
         return matchers_pkg.create(setup.kind, **setup.params)
@@ -127,15 +127,16 @@ class MatcherPool:
             proc = ctx.Process(target=_worker, args=(lane, inbox, outbox), daemon=True)
             proc.start()
             self._procs.append((proc, inbox, outbox, [s.id for s in lane], {"dead": ""}))
-        for proc, _, outbox, ids, state in self._procs:
+        for proc, _, outbox, ids, _state in self._procs:
             payload = self._receive(proc, outbox, "ready")
             if payload is not None:
                 self.close()
-                raise RuntimeError(f"matchers {', '.join(ids)}: {payload} (a script that runs scenarios with "
-                                   "workers > 1 needs `if __name__ == '__main__':`)")
+                raise RuntimeError(
+                    f"matchers {', '.join(ids)}: {payload} (a script that runs scenarios with workers > 1 needs `if __name__ == '__main__':`)"
+                )
 
     def submit(self, scan: Scan) -> None:
-        for proc, inbox, _, _, state in self._procs:
+        for _proc, inbox, _, _, state in self._procs:
             if not state["dead"]:
                 inbox.put((scan.stamp, scan.points))
         self._pending.append(scan)
@@ -194,7 +195,7 @@ class MatcherPool:
                 proc.terminate()
         self._procs = []
 
-    def __enter__(self) -> "MatcherPool":
+    def __enter__(self) -> MatcherPool:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -16,9 +16,16 @@ class RunProgress:
         self._start = time.perf_counter()
         self._last = 0.0
         self._bar = Progress(
-            TextColumn(f"[bold]{name}[/]"), BarColumn(), TextColumn("{task.fields[sim]}"),
-            TextColumn("{task.fields[scans]} scans"), TextColumn("[cyan]{task.fields[speed]}"),
-            TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(), console=console, transient=False,
+            TextColumn(f"[bold]{name}[/]"),
+            BarColumn(),
+            TextColumn("{task.fields[sim]}"),
+            TextColumn("{task.fields[scans]} scans"),
+            TextColumn("[cyan]{task.fields[speed]}"),
+            TimeElapsedColumn(),
+            TextColumn("eta"),
+            TimeRemainingColumn(),
+            console=console,
+            transient=False,
             disable=quiet,
         )
         self._task = self._bar.add_task(name, total=1.0, sim="", scans=0, speed="")
@@ -30,10 +37,16 @@ class RunProgress:
         self._last = now
         done = t - t_start
         speed = done / (now - self._start) if now > self._start else 0.0
-        self._bar.update(self._task, total=t_end - t_start, completed=done, scans=scans,
-                         sim=f"{done:,.0f}/{t_end - t_start:,.0f} s", speed=f"{speed:.1f}x real time")
+        self._bar.update(
+            self._task,
+            total=t_end - t_start,
+            completed=done,
+            scans=scans,
+            sim=f"{done:,.0f}/{t_end - t_start:,.0f} s",
+            speed=f"{speed:.1f}x real time",
+        )
 
-    def __enter__(self) -> "RunProgress":
+    def __enter__(self) -> RunProgress:
         self._bar.start()
         return self
 

@@ -18,7 +18,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import tomli_w
@@ -60,7 +60,7 @@ class RunResult:
 
 def default_out_dir(scenario: Scenario) -> Path:
     """runs/<scenario>-<UTC time>/"""
-    return Path("runs") / f"{scenario.name}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+    return Path("runs") / f"{scenario.name}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
 
 
 def run(
@@ -103,9 +103,11 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     setups = matcher_setups(scenario)
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()))
-        feed.drive(traffic_log.tap(vessel_run.events(feed)),
-                   lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
-                   (ValueError, RuntimeError, FloatingPointError))
+        feed.drive(
+            traffic_log.tap(vessel_run.events(feed)),
+            lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
+            (ValueError, RuntimeError, FloatingPointError),
+        )
         pool.close()
         workers_rss = pool.workers_rss_mb
         lanes = pool.lanes
@@ -114,11 +116,19 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     t_last = float(rec.scan_t[-1]) + lidar.revolution_s if len(rec.scan_t) else t_start
     sim_s = t_last - t_start
     run_info = {
-        "scenario": scenario.name, "scenario_hash": scenario.hash, "seed": scenario.seed,
-        "t_start": t_start, "t_end": t_last, "sim_s": sim_s, "wall_s": wall,
+        "scenario": scenario.name,
+        "scenario_hash": scenario.hash,
+        "seed": scenario.seed,
+        "t_start": t_start,
+        "t_end": t_last,
+        "sim_s": sim_s,
+        "wall_s": wall,
         "realtime_factor": sim_s / wall if wall > 0 else math.nan,
         "peak_rss_mb": peak_rss_mb() + workers_rss,
-        "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes,
+        "scans": len(rec.scan_t),
+        "fixes": len(rec.fixes.t),
+        "workers": len(lanes),
+        "lanes": lanes,
         "failures": rec.failures,
     }
     if traffic_log.traffic:
@@ -129,16 +139,19 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     return _write(scenario, tmp, rec, run_info, vessel_node, 1.0 / receiver.rate_hz, report)
 
 
-def _write(scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel: dict, fix_period: float,
-           report: bool) -> tuple[dict, list[Outcome]]:
+def _write(
+    scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel: dict, fix_period: float, report: bool
+) -> tuple[dict, list[Outcome]]:
     windows = win.find(rec.fixes, rec.injected, fix_period)
     tree = metrics.compute(rec, windows, run_info, vessel)
     safe = metrics.json_safe(tree)
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]
     safe = {"provenance": provenance.collect(), **safe}
-    (tmp / "scenario.toml").write_text(f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
-                                       + tomli_w.dumps(scenario.resolved()))
+    (tmp / "scenario.toml").write_text(
+        f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
+        + tomli_w.dumps(scenario.resolved())
+    )
     (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")
     files.write_tum(tmp / "groundtruth.tum", rec.scan_t, rec.truth)
     for eid, poses in rec.estimates.items():

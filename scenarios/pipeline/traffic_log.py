@@ -34,5 +34,9 @@ class TrafficLog:
         counts = np.asarray(self.points, dtype=float)
         if not len(counts):
             return {"median": float("nan"), "p90": float("nan"), "max": float("nan"), "scans_with": float("nan")}
-        return {"median": float(np.median(counts)), "p90": float(np.percentile(counts, 90)), "max": float(counts.max()),
-                "scans_with": float(np.mean(counts > 0))}
+        return {
+            "median": float(np.median(counts)),
+            "p90": float(np.percentile(counts, 90)),
+            "max": float(counts.max()),
+            "scans_with": float(np.mean(counts > 0)),
+        }

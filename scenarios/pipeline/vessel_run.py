@@ -37,7 +37,7 @@ class VesselRun:
     loop: ClosedLoop | None = None
 
     @classmethod
-    def build(cls, scenario: Scenario, world, planned: Trajectory, lidar, receiver, t_start: float, t_end: float) -> "VesselRun":
+    def build(cls, scenario: Scenario, world, planned: Trajectory, lidar, receiver, t_start: float, t_end: float) -> VesselRun:
         """Open loop: the planned trajectory. Closed loop: a driven one starting where the plan is at t_start, at its speed.
         The sensors see `world` with the scenario's traffic (a chase boat follows the trajectory the vessel takes)."""
         control = scenario.control
@@ -46,9 +46,13 @@ class VesselRun:
             scene = Scene(world, build_traffic(scenario.traffic, world, planned))
             return cls(scenario, scene, planned, VesselWatch(world, planned, clearance, lidar.revolution_s), lidar, receiver, t_start, t_end)
         start = planned.pose(t_start)
-        driven = DrivenTrajectory(scenario.vessel.model_copy(update={"seed": scenario.seed}), control.dynamics,
-                                  (start[0, 3], start[1, 3], float(np.arctan2(start[1, 0], start[0, 0])), float(planned.speed(t_start))),
-                                  t0=t_start, current_enu=control.current_enu_mps)
+        driven = DrivenTrajectory(
+            scenario.vessel.model_copy(update={"seed": scenario.seed}),
+            control.dynamics,
+            (start[0, 3], start[1, 3], float(np.arctan2(start[1, 0], start[0, 0])), float(planned.speed(t_start))),
+            t0=t_start,
+            current_enu=control.current_enu_mps,
+        )
         watch = VesselWatch(world, driven, clearance, lidar.revolution_s)
         end_station = float(planned.station(t_end))
         t_limit = t_start + control.time_limit_factor * (t_end - t_start)
@@ -59,8 +63,9 @@ class VesselRun:
     def events(self, feed) -> Iterator:
         """The run's scans and fixes in time order; closed loop steers on `feed`'s estimator (or the truth)."""
         if self.loop is None:
-            return watched(planned_events(self.world, self.trajectory, self.lidar, self.receiver, self.t_start, self.t_end),
-                           self.watch, self.lidar.revolution_s)
+            return watched(
+                planned_events(self.world, self.trajectory, self.lidar, self.receiver, self.t_start, self.t_end), self.watch, self.lidar.revolution_s
+            )
         control = self.scenario.control
         autopilot = Autopilot(self.world.route, control.dynamics, self.scenario.vessel.speed_mps, control.autopilot)
         believed = self.trajectory.pose if control.steer_on == "truth" else (lambda t: feed.pose_of(control.steer_on))

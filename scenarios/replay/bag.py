@@ -63,8 +63,7 @@ def opened(path: Path) -> Iterator[AnyReader]:
         reader.close()
 
 
-def pick(path: Path, types: dict[str, str], wanted: tuple[str, ...], named: str | None, option: str,
-         fallback: tuple[str, ...] = ()) -> str:
+def pick(path: Path, types: dict[str, str], wanted: tuple[str, ...], named: str | None, option: str, fallback: tuple[str, ...] = ()) -> str:
     """The topic `named`, else the only topic of a wanted type (else of a fallback type); a one-line ValueError otherwise."""
     kinds = wanted + fallback
     listed = ", ".join(f"{t} ({types[t].rsplit('/', 1)[-1]})" for t in sorted(types) if types[t] in kinds) or "none"
@@ -77,8 +76,9 @@ def pick(path: Path, types: dict[str, str], wanted: tuple[str, ...], named: str 
         if len(found) == 1:
             return found[0]
         if len(found) > 1:
-            raise ValueError(f"{path}: {len(found)} {' or '.join(k.rsplit('/', 1)[-1] for k in group)} topics ({', '.join(found)}): "
-                             f"pick one with {option}")
+            raise ValueError(
+                f"{path}: {len(found)} {' or '.join(k.rsplit('/', 1)[-1] for k in group)} topics ({', '.join(found)}): pick one with {option}"
+            )
     raise ValueError(f"{path}: no {' or '.join(k.rsplit('/', 1)[-1] for k in kinds)} topic")
 
 

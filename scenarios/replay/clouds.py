@@ -22,8 +22,7 @@ from sim.scan import POINT_DTYPE, Scan
 
 DATATYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 """sensor_msgs/PointField datatype -> numpy type."""
-NAMES = {"intensity": ("intensity", "i", "reflectivity"), "ring": ("ring", "laser_id", "channel"),
-         "time": ("time", "t", "timestamp", "timestamps")}
+NAMES = {"intensity": ("intensity", "i", "reflectivity"), "ring": ("ring", "laser_id", "channel"), "time": ("time", "t", "timestamp", "timestamps")}
 FOV_MARGIN_DEG = 1.0
 ABSOLUTE_TIME_S = 1e6
 
@@ -63,8 +62,14 @@ def fields_dtype(msg) -> np.dtype:
     if unknown:
         raise ValueError(f"PointCloud2 field {unknown[0]!r} has an unknown datatype")
     usable = [(name, offset, kind) for name, offset, kind, count in named if count == 1 and name]
-    return np.dtype({"names": [u[0] for u in usable], "formats": [order + u[2] for u in usable],
-                     "offsets": [u[1] for u in usable], "itemsize": int(msg.point_step)})
+    return np.dtype(
+        {
+            "names": [u[0] for u in usable],
+            "formats": [order + u[2] for u in usable],
+            "offsets": [u[1] for u in usable],
+            "itemsize": int(msg.point_step),
+        }
+    )
 
 
 def rings_from_elevation(xyz: np.ndarray) -> np.ndarray:

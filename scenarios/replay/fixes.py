@@ -103,8 +103,9 @@ def from_nmea(stamp: float, lines: list[str], geo: Geo) -> GnssFix | None:
         return None
     gsa = kinds.get("GSA", [])
     used = {prn for m in gsa for prn in m["prns"]}
-    sats = tuple(SatelliteReport(prn, float(az), float(el), float(snr or 0.0), prn in used)
-                 for m in kinds.get("GSV", []) for prn, el, az, snr in m["sats"])
+    sats = tuple(
+        SatelliteReport(prn, float(az), float(el), float(snr or 0.0), prn in used) for m in kinds.get("GSV", []) for prn, el, az, snr in m["sats"]
+    )
     if gga is not None:
         quality, lat, lon, alt, num_sats = gga["quality"], gga["lat"], gga["lon"], gga["alt"], gga["num_sats"]
     else:
@@ -114,16 +115,29 @@ def from_nmea(stamp: float, lines: list[str], geo: Geo) -> GnssFix | None:
         alt = geo.origin[2]
     dops = [m["hdop"] for m in (gga, *gsa) if m is not None]
     hdop = next((h for h in dops if math.isfinite(h)), math.nan) if dops else NOMINAL_HDOP
-    return fix(stamp, geo, quality, lat, lon, alt, num_sats, hdop,
-               vdop=gsa[0]["vdop"] if gsa else math.nan, pdop=gsa[0]["pdop"] if gsa else math.nan, sats=sats,
-               speed_mps=rmc["speed_mps"] if rmc else math.nan, course_deg=rmc["course_deg"] if rmc else math.nan)
+    return fix(
+        stamp,
+        geo,
+        quality,
+        lat,
+        lon,
+        alt,
+        num_sats,
+        hdop,
+        vdop=gsa[0]["vdop"] if gsa else math.nan,
+        pdop=gsa[0]["pdop"] if gsa else math.nan,
+        sats=sats,
+        speed_mps=rmc["speed_mps"] if rmc else math.nan,
+        course_deg=rmc["course_deg"] if rmc else math.nan,
+    )
 
 
 def from_navsatfix(stamp: float, msg, geo: Geo) -> GnssFix:
     """A sensor_msgs/NavSatFix's fix (see the module docstring for status and covariance)."""
     hdop, vdop = navsat_dops(msg)
-    return fix(stamp, geo, NAVSAT_QUALITY.get(int(msg.status.status), 0), float(msg.latitude), float(msg.longitude), float(msg.altitude),
-               0, hdop, vdop=vdop)
+    return fix(
+        stamp, geo, NAVSAT_QUALITY.get(int(msg.status.status), 0), float(msg.latitude), float(msg.longitude), float(msg.altitude), 0, hdop, vdop=vdop
+    )
 
 
 def navsat_dops(msg) -> tuple[float, float]:
@@ -146,13 +160,40 @@ def refined(fix: GnssFix, msg, geo: Geo) -> GnssFix:
     return dataclasses.replace(fix, lat=lat, lon=lon, alt=alt, enu=enu, hdop=hdop, vdop=vdop)
 
 
-def fix(stamp: float, geo: Geo, quality: int, lat: float, lon: float, alt: float, num_sats: int, hdop: float, *,
-        vdop: float = math.nan, pdop: float = math.nan, sats: tuple[SatelliteReport, ...] = (),
-        speed_mps: float = math.nan, course_deg: float = math.nan) -> GnssFix:
+def fix(
+    stamp: float,
+    geo: Geo,
+    quality: int,
+    lat: float,
+    lon: float,
+    alt: float,
+    num_sats: int,
+    hdop: float,
+    *,
+    vdop: float = math.nan,
+    pdop: float = math.nan,
+    sats: tuple[SatelliteReport, ...] = (),
+    speed_mps: float = math.nan,
+    course_deg: float = math.nan,
+) -> GnssFix:
     """A GnssFix of reported values: ENU from the position (NaN without one or without a fix), UTC from the stamp, no truth."""
     position = quality != 0 and all(math.isfinite(v) for v in (lat, lon, alt))
     enu = geo.enu(lat, lon, alt) if position else np.full(3, np.nan)
     quality = quality if position else 0
     utc = geo.utc(stamp).isoformat(timespec="microseconds")
-    return GnssFix(stamp=stamp, lat=lat, lon=lon, alt=alt, enu=enu, quality=quality, num_sats=num_sats, hdop=hdop, vdop=vdop,
-                   pdop=pdop, sats=sats, utc=utc, speed_mps=speed_mps, course_deg=course_deg)
+    return GnssFix(
+        stamp=stamp,
+        lat=lat,
+        lon=lon,
+        alt=alt,
+        enu=enu,
+        quality=quality,
+        num_sats=num_sats,
+        hdop=hdop,
+        vdop=vdop,
+        pdop=pdop,
+        sats=sats,
+        utc=utc,
+        speed_mps=speed_mps,
+        course_deg=course_deg,
+    )

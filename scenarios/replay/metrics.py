@@ -42,12 +42,16 @@ def measured(fixes: FixTable) -> np.ndarray:
 def gps_metrics(fixes: FixTable) -> dict:
     """Shares of the receiver's fix qualities and its median HDOP."""
     n = len(fixes.t)
-    share = lambda mask: float(mask.mean()) if n else math.nan  # noqa: E731
+    share = lambda mask: float(mask.mean()) if n else math.nan
     good = measured(fixes)
     hdop = fixes.hdop[good]
-    return {"fixes": n, "measured": share(good), "valid": share(fixes.quality != 0),
-            "dead_reckoning": share(fixes.quality == DEAD_RECKONING),
-            "hdop_median": float(np.nanmedian(hdop)) if np.isfinite(hdop).any() else math.nan}
+    return {
+        "fixes": n,
+        "measured": share(good),
+        "valid": share(fixes.quality != 0),
+        "dead_reckoning": share(fixes.quality == DEAD_RECKONING),
+        "hdop_median": float(np.nanmedian(hdop)) if np.isfinite(hdop).any() else math.nan,
+    }
 
 
 def estimator_metrics(rec: RunRecord, eid: str, antenna: np.ndarray) -> dict:
@@ -62,9 +66,14 @@ def estimator_metrics(rec: RunRecord, eid: str, antenna: np.ndarray) -> dict:
         at = rec.fixes.t[trusted]
         xy = np.stack([np.interp(at, rec.scan_t[has], position[:, k], left=math.nan, right=math.nan) for k in (0, 1)], axis=1)
         distance = np.hypot(*(xy - rec.fixes.enu[trusted, :2]).T)
-    out = {"available": float(has.mean()) if len(has) else math.nan,
-           "against_gps": {"trusted": float(trusted.sum() / good.sum()) if good.any() else math.nan,
-                           "fixes": int(np.isfinite(distance).sum()), **metrics.stats(distance)}}
+    out = {
+        "available": float(has.mean()) if len(has) else math.nan,
+        "against_gps": {
+            "trusted": float(trusted.sum() / good.sum()) if good.any() else math.nan,
+            "fixes": int(np.isfinite(distance).sum()),
+            **metrics.stats(distance),
+        },
+    }
     failed = [f for f in rec.failures if f["component"] == "estimator" and f["id"] == eid]
     out["failed"] = bool(failed)
     if failed:

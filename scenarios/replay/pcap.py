@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import dpkt
@@ -56,8 +56,16 @@ def read(path: str | Path, place: Place) -> Recording:
     if not packets:
         raise ValueError(f"{path}: no Velodyne data packets (UDP payloads of {DATA_BYTES} bytes)")
     geo = Geo.choose(place, ns_of(first), position)
-    return Recording(path, "pcap", f"HDL-32E data packets ({packets})", "GPRMC of the position packets", geo,
-                     geo.seconds(ns_of(first)), geo.seconds(ns_of(last)), events=lambda: events(path, geo, place.start_azimuth_deg))
+    return Recording(
+        path,
+        "pcap",
+        f"HDL-32E data packets ({packets})",
+        "GPRMC of the position packets",
+        geo,
+        geo.seconds(ns_of(first)),
+        geo.seconds(ns_of(last)),
+        events=lambda: events(path, geo, place.start_azimuth_deg),
+    )
 
 
 def payloads(path: Path) -> Iterator[tuple[float, bytes]]:
@@ -130,7 +138,7 @@ def events(path: Path, geo: Geo, start_azimuth_deg: float) -> Iterator[Event]:
 def rmc_utc(fields: dict) -> datetime:
     """The UTC time of a decoded RMC (its date and time of day)."""
     day = fields["date"]
-    return datetime(day.year, day.month, day.day, tzinfo=timezone.utc) + timedelta(seconds=fields["seconds_of_day"])
+    return datetime(day.year, day.month, day.day, tzinfo=UTC) + timedelta(seconds=fields["seconds_of_day"])
 
 
 def scan_event(stamp, points: np.ndarray, geo: Geo) -> ScanEvent:

@@ -17,7 +17,7 @@ import itertools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +31,7 @@ from sim.gnss_fix import GnssFix
 DAY_NS = 86_400 * 10**9
 ORIGIN_RADIUS_M = 20_000.0
 REORDER_LAG_S = 1.0
-UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 @dataclass(frozen=True)
@@ -65,7 +65,7 @@ class Geo:
     frame: LocalFrame = field(repr=False)
 
     @classmethod
-    def choose(cls, place: Place, first_ns: int, first_position: tuple[float, float, float] | None) -> "Geo":
+    def choose(cls, place: Place, first_ns: int, first_position: tuple[float, float, float] | None) -> Geo:
         """Time zero and ENU origin by the rules of the module docstring."""
         epoch = unix_ns(place.epoch_utc)
         zero = epoch if 0 <= first_ns - epoch < DAY_NS else first_ns

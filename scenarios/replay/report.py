@@ -17,8 +17,9 @@ from scenarios.report import document, plots, run_report
 from scenarios.report.document import Cell, Column, Heading, Table, Text, get, metres, num, share
 
 MAP = "plots/map.png"
-MAP_CAPTION = ("The recording in the world's ENU frame: GPS fixes (grey: measured, brown: dead reckoning), each estimate, "
-               "and each matcher's odometry (dashed).")
+MAP_CAPTION = (
+    "The recording in the world's ENU frame: GPS fixes (grey: measured, brown: dead reckoning), each estimate, and each matcher's odometry (dashed)."
+)
 ESTIMATOR_COLUMNS = [
     Column("available", get("available"), share, "high"),
     Column("trusted fixes", get("against_gps.trusted"), share, None),
@@ -49,16 +50,19 @@ def build(tree: dict, images: dict[str, str]) -> list:
     blocks = [*header(tree), *run_report.failures(ctx)]
     estimators = tree.get("estimators", {})
     if estimators:
-        note = ("No truth: horizontal distance (m) from each estimate's antenna, interpolated to the fix time, to the measured GPS "
-                "fixes its own monitor trusted (their share: trusted fixes). GPS has its own error: this is agreement with it, "
-                "not accuracy.")
-        blocks += [Heading(2, "Estimators against GPS"), document.ranked_table("estimator", estimators, ESTIMATOR_COLUMNS,
-                                                                                 labels(estimators), note)]
+        note = (
+            "No truth: horizontal distance (m) from each estimate's antenna, interpolated to the fix time, to the measured GPS "
+            "fixes its own monitor trusted (their share: trusted fixes). GPS has its own error: this is agreement with it, "
+            "not accuracy."
+        )
+        blocks += [Heading(2, "Estimators against GPS"), document.ranked_table("estimator", estimators, ESTIMATOR_COLUMNS, labels(estimators), note)]
     blocks += [*run_report.figures(ctx, "map"), *gps(tree.get("gps", {}))]
     matchers = tree.get("matchers", {})
     if matchers:
-        note = ("Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; degenerate: "
-                "usable matches with an unobserved direction.")
+        note = (
+            "Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; degenerate: "
+            "usable matches with an unobserved direction."
+        )
         blocks += [Heading(2, "Scan matchers"), document.ranked_table("matcher", matchers, MATCHER_COLUMNS, labels(matchers), note)]
     return blocks
 
@@ -67,14 +71,21 @@ def header(tree: dict) -> list:
     """Title, what was replayed through what, its time base and ENU origin, and how fast it ran."""
     run, rec = tree["run"], tree["run"]["recording"]
     lat, lon = rec["origin"][:2]
-    return [Heading(1, f"riverbench replay: {Path(rec['path']).name}"),
-            Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {rec['format']} · lidar: {rec['lidar']} · GPS: {rec['gps']}",
-                 "meta"),
-            Text(f"time zero {rec['time_zero_utc']} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
-                 f"t = {num(run['t_start'], '.1f')} … {num(run['t_end'], '.1f')} s", "meta"),
-            Text(f"{num(run['duration_s'], '.1f')} s of recording in {num(run['wall_s'], '.1f')} s "
-                 f"({num(run['realtime_factor'], '.1f')}× real time) · {run['scans']} scans · {run['fixes']} GPS fixes · "
-                 f"peak memory {num(run['peak_rss_mb'], '.0f')} MB", "meta")]
+    return [
+        Heading(1, f"riverbench replay: {Path(rec['path']).name}"),
+        Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {rec['format']} · lidar: {rec['lidar']} · GPS: {rec['gps']}", "meta"),
+        Text(
+            f"time zero {rec['time_zero_utc']} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
+            f"t = {num(run['t_start'], '.1f')} … {num(run['t_end'], '.1f')} s",
+            "meta",
+        ),
+        Text(
+            f"{num(run['duration_s'], '.1f')} s of recording in {num(run['wall_s'], '.1f')} s "
+            f"({num(run['realtime_factor'], '.1f')}× real time) · {run['scans']} scans · {run['fixes']} GPS fixes · "
+            f"peak memory {num(run['peak_rss_mb'], '.0f')} MB",
+            "meta",
+        ),
+    ]
 
 
 def labels(nodes: dict[str, dict]) -> dict[str, str]:
@@ -86,9 +97,21 @@ def gps(g: dict) -> list:
     """The receiver's fix qualities and HDOP as recorded."""
     if not g:
         return []
-    return [Heading(2, "GPS"), Table(["fixes", "measured", "valid", "dead reckoning", "HDOP median"],
-                                     [[Cell(str(g.get("fixes"))), Cell(share(g.get("measured"))), Cell(share(g.get("valid"))),
-                                       Cell(share(g.get("dead_reckoning"))), Cell(num(g.get("hdop_median"), ".2f"))]])]
+    return [
+        Heading(2, "GPS"),
+        Table(
+            ["fixes", "measured", "valid", "dead reckoning", "HDOP median"],
+            [
+                [
+                    Cell(str(g.get("fixes"))),
+                    Cell(share(g.get("measured"))),
+                    Cell(share(g.get("valid"))),
+                    Cell(share(g.get("dead_reckoning"))),
+                    Cell(num(g.get("hdop_median"), ".2f")),
+                ]
+            ],
+        ),
+    ]
 
 
 def draw_map(run_dir: Path, tree: dict) -> bool:

@@ -23,7 +23,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -66,9 +66,17 @@ class ReplayResult:
         return self.out_dir / "report.html"
 
 
-def replay(recording: str | os.PathLike, scenario: Scenario | str | os.PathLike, out_dir: str | os.PathLike | None = None, *,
-           lidar_topic: str | None = None, gps_topic: str | None = None, workers: int = 1, report: bool = True,
-           progress: Callable[[float, float, float, int], None] | None = None) -> ReplayResult:
+def replay(
+    recording: str | os.PathLike,
+    scenario: Scenario | str | os.PathLike,
+    out_dir: str | os.PathLike | None = None,
+    *,
+    lidar_topic: str | None = None,
+    gps_topic: str | None = None,
+    workers: int = 1,
+    report: bool = True,
+    progress: Callable[[float, float, float, int], None] | None = None,
+) -> ReplayResult:
     """Replay `recording` through `scenario`'s matchers and estimators into a run directory (default runs/replay-<name>-<UTC time>/).
 
     A recording that cannot be read, a topic that is not in it or that is ambiguous, a capture
@@ -77,7 +85,7 @@ def replay(recording: str | os.PathLike, scenario: Scenario | str | os.PathLike,
     """
     scenario = scenario if isinstance(scenario, Scenario) else scenarios.load(scenario)
     path = Path(recording)
-    out = Path(out_dir) if out_dir is not None else Path("runs") / f"replay-{path.stem}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}"
+    out = Path(out_dir) if out_dir is not None else Path("runs") / f"replay-{path.stem}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
     check_out(out, directory=True)
     world = worlds.load(scenario.world, **scenario.world_params)
     place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg)
@@ -114,10 +122,14 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     start = np.eye(4)
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, lambda stamp: start, recording.t_start, nmea_writer(nmea, lambda event: list(event.sentences)))
-        feed.drive(recording.events(),
-                   lambda event: progress is not None and isinstance(event, ScanEvent)
-                   and progress(event.stamp, recording.t_start, recording.t_end, feed.scans),
-                   (ValueError, RuntimeError, OSError), where=f"{recording.path}: ")
+        feed.drive(
+            recording.events(),
+            lambda event: (
+                progress is not None and isinstance(event, ScanEvent) and progress(event.stamp, recording.t_start, recording.t_end, feed.scans)
+            ),
+            (ValueError, RuntimeError, OSError),
+            where=f"{recording.path}: ",
+        )
         pool.close()
         workers_rss, lanes = pool.workers_rss_mb, pool.lanes
     if not (tmp / "gps.nmea").stat().st_size:
@@ -126,17 +138,33 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     wall = time.perf_counter() - wall_start
     geo = recording.geo
     run_info = {
-        "scenario": scenario.name, "scenario_hash": scenario.hash,
-        "recording": {"path": str(recording.path), "format": recording.format, "lidar": recording.lidar_source, "gps": recording.gps_source,
-                      "time_zero_utc": geo.utc(0.0).isoformat(), "origin": list(geo.origin), "origin_from": geo.origin_source},
-        "t_start": recording.t_start, "t_end": recording.t_end, "duration_s": recording.t_end - recording.t_start,
-        "wall_s": wall, "realtime_factor": (recording.t_end - recording.t_start) / wall if wall > 0 else math.nan,
+        "scenario": scenario.name,
+        "scenario_hash": scenario.hash,
+        "recording": {
+            "path": str(recording.path),
+            "format": recording.format,
+            "lidar": recording.lidar_source,
+            "gps": recording.gps_source,
+            "time_zero_utc": geo.utc(0.0).isoformat(),
+            "origin": list(geo.origin),
+            "origin_from": geo.origin_source,
+        },
+        "t_start": recording.t_start,
+        "t_end": recording.t_end,
+        "duration_s": recording.t_end - recording.t_start,
+        "wall_s": wall,
+        "realtime_factor": (recording.t_end - recording.t_start) / wall if wall > 0 else math.nan,
         "peak_rss_mb": peak_rss_mb() + workers_rss,
-        "scans": len(rec.scan_t), "fixes": len(rec.fixes.t), "workers": len(lanes), "lanes": lanes, "failures": rec.failures,
+        "scans": len(rec.scan_t),
+        "fixes": len(rec.fixes.t),
+        "workers": len(lanes),
+        "lanes": lanes,
+        "failures": rec.failures,
     }
     tree = run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float)))
-    (tmp / "scenario.toml").write_text(f"# resolved scenario {scenario.hash}: its matchers and estimators replayed over {recording.path}\n"
-                                       + tomli_w.dumps(scenario.resolved()))
+    (tmp / "scenario.toml").write_text(
+        f"# resolved scenario {scenario.hash}: its matchers and estimators replayed over {recording.path}\n" + tomli_w.dumps(scenario.resolved())
+    )
     tree = {"provenance": provenance.collect(), **tree}
     (tmp / "metrics.json").write_text(json.dumps(tree, indent=2) + "\n")
     for eid, poses in rec.estimates.items():

@@ -104,11 +104,13 @@ def share(value) -> str:
 
 def get(path: str) -> Callable[[dict], float | None]:
     """A getter of a dotted path in a metrics node (None when absent)."""
+
     def value(node: dict):
         """The value at the path, or None."""
         for key in path.split("."):
             node = node.get(key) if isinstance(node, dict) else None
         return node
+
     return value
 
 
@@ -116,10 +118,14 @@ def ranked_table(first: str, nodes: dict[str, dict], columns: list[Column], labe
     """A row per node, a cell per column; the best value of each ranked column in bold (none when all equal)."""
     texts = {c.title: {k: c.fmt(c.value(n)) for k, n in nodes.items()} for c in columns}
     best = {c.title: _best_text(c, nodes) for c in columns}
-    rows = [[Cell(labels[k], css="fail" if n.get("failed") else "")]
-            + [Cell(texts[c.title][k] + (c.detail(n) if c.detail else ""), bold=texts[c.title][k] == best[c.title], css="text" if c.text else "")
-               for c in columns]
-            for k, n in nodes.items()]
+    rows = [
+        [Cell(labels[k], css="fail" if n.get("failed") else "")]
+        + [
+            Cell(texts[c.title][k] + (c.detail(n) if c.detail else ""), bold=texts[c.title][k] == best[c.title], css="text" if c.text else "")
+            for c in columns
+        ]
+        for k, n in nodes.items()
+    ]
     return Table([first, *(c.title for c in columns)], rows, note)
 
 
@@ -148,12 +154,16 @@ def to_markdown(blocks: list) -> str:
 
 def _markdown_table(table: Table) -> str:
     """A Markdown table (first column left-aligned, the rest right-aligned) and its note."""
+
     def cell(c: Cell) -> str:
         """One Markdown cell: pipes escaped, bold when best or failed."""
         text = c.text.replace("|", "\\|")
         return f"**{text}**" if text and (c.bold or c.css == "fail") else text
-    lines = ["| " + " | ".join(h.replace("|", "\\|") for h in table.header) + " |",
-             "|" + "|".join([":---"] + ["---:"] * (len(table.header) - 1)) + "|"]
+
+    lines = [
+        "| " + " | ".join(h.replace("|", "\\|") for h in table.header) + " |",
+        "|" + "|".join([":---"] + ["---:"] * (len(table.header) - 1)) + "|",
+    ]
     lines += ["| " + " | ".join(cell(c) for c in row) + " |" for row in table.rows]
     return "\n".join(lines) + (f"\n\n*{table.note}*" if table.note else "")
 
@@ -170,22 +180,29 @@ def to_html(blocks: list, run_dir: Path, title: str) -> str:
             body.append(_html_table(b))
         elif isinstance(b, Image):
             data = base64.b64encode((run_dir / b.path).read_bytes()).decode("ascii")
-            body.append(f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(b.caption)}">'
-                        f"<figcaption>{html.escape(b.caption)}</figcaption></figure>")
-    return (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n<title>{html.escape(title)}</title>\n'
-            f"<style>{CSS}</style>\n</head>\n<body>\n" + "\n".join(body) + "\n</body>\n</html>\n")
+            body.append(
+                f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(b.caption)}">'
+                f"<figcaption>{html.escape(b.caption)}</figcaption></figure>"
+            )
+    return (
+        f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n<title>{html.escape(title)}</title>\n'
+        f"<style>{CSS}</style>\n</head>\n<body>\n" + "\n".join(body) + "\n</body>\n</html>\n"
+    )
 
 
 def _html_table(table: Table) -> str:
     """An HTML table in a horizontally scrolling box, and its note."""
+
     def cell(c: Cell) -> str:
         """One <td>: escaped, bold when best, classed pass/fail/text."""
         text = html.escape(c.text)
         text = f"<b>{text}</b>" if c.bold else text
         return f'<td class="{c.css}">{text}</td>' if c.css else f"<td>{text}</td>"
+
     text_columns = {i for row in table.rows for i, c in enumerate(row) if c.css == "text"}
-    head = "".join(f'<th class="text">{html.escape(h)}</th>' if i in text_columns else f"<th>{html.escape(h)}</th>"
-                   for i, h in enumerate(table.header))
+    head = "".join(
+        f'<th class="text">{html.escape(h)}</th>' if i in text_columns else f"<th>{html.escape(h)}</th>" for i, h in enumerate(table.header)
+    )
     rows = "".join("<tr>" + "".join(cell(c) for c in row) + "</tr>\n" for row in table.rows)
     note = f'<p class="note">{html.escape(table.note)}</p>' if table.note else ""
     return f'<div class="scroll"><table>\n<tr>{head}</tr>\n{rows}</table></div>{note}'

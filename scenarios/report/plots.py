@@ -38,7 +38,7 @@ PLOTS = {
     "map": "The stretch: true track, GPS fixes, each estimate and matcher odometry; blackout, NLOS and injected-fault stretches highlighted.",
     "error": "Horizontal error against time: each estimator (lines) and each GPS fix (dots); GPS-degradation windows shaded.",
     "hdop_error": "HDOP against the true horizontal error of each measured fix, fixes that used a reflected (NLOS) signal in orange: "
-                  "an HDOP threshold only helps where the faulty fixes (above the dotted line) sit at high HDOP.",
+    "an HDOP threshold only helps where the faulty fixes (above the dotted line) sit at high HDOP.",
     "yaw": "Yaw error (estimate minus truth, wrapped to ±180°) against time; windows shaded.",
     "matchers": "Scan matchers: points per scan and the outcome of each registration.",
 }
@@ -205,8 +205,11 @@ def map_figure(series: RunSeries) -> Figure | None:
         axes[0].add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="black", lw=0.8, ls="--"))
         _draw_map(axes[1], series, closeup.extent)
         _mark_moment(axes[1], series, closeup.stamp)
-        axes[1].set_title(f"Close-up (dashed box): {closeup.window.kind} {closeup.window.start - series.t0:.0f}–{closeup.window.end - series.t0:.0f} s\n"
-                          f"markers: where each estimate was at {closeup.stamp - series.t0:.1f} s (star: truth)", fontsize=10)
+        axes[1].set_title(
+            f"Close-up (dashed box): {closeup.window.kind} {closeup.window.start - series.t0:.0f}–{closeup.window.end - series.t0:.0f} s\n"
+            f"markers: where each estimate was at {closeup.stamp - series.t0:.1f} s (star: truth)",
+            fontsize=10,
+        )
     handles, labels = axes[-1].get_legend_handles_labels()
     legend = figure.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)), fontsize=8)
     for handle in legend.legend_handles:
@@ -344,7 +347,11 @@ def error_figure(series: RunSeries) -> Figure | None:
     ax.set_ylim(0, top)
     handles.append(ax.axhline(FAULT_M, color="black", lw=0.8, ls=":", label=f"{FAULT_M:g} m (faulty fix)"))
     clipped = [f"{n} {np.nanmax(e):.0f} m" for n, e in errors.items() if len(e) and np.nanmax(e) > top]
-    ax.set_title("Horizontal error of each estimate and (dots) of each GPS fix" + (f" (axis clipped at {top:.0f} m; peaks: {', '.join(clipped)})" if clipped else ""), fontsize=10)
+    ax.set_title(
+        "Horizontal error of each estimate and (dots) of each GPS fix"
+        + (f" (axis clipped at {top:.0f} m; peaks: {', '.join(clipped)})" if clipped else ""),
+        fontsize=10,
+    )
     ax.set_xlabel("time since start (s)")
     ax.set_ylabel("horizontal error (m)")
     ax.grid(alpha=0.3)
@@ -370,7 +377,10 @@ def hdop_figure(series: RunSeries) -> Figure | None:
     for name, limit in series.hdop_limits.items():
         ax.axvline(limit, color="#d62728", lw=0.9, ls="--", label=f"{name}: trusts HDOP ≤ {limit:g}")
     r = correlation(gps["hdop"][measured], gps["err_h"][measured])
-    ax.set_title("HDOP against true horizontal error of measured fixes" + (f" (correlation r = {round(r, 2) + 0.0:.2f})" if math.isfinite(r) else ""), fontsize=10)
+    ax.set_title(
+        "HDOP against true horizontal error of measured fixes" + (f" (correlation r = {round(r, 2) + 0.0:.2f})" if math.isfinite(r) else ""),
+        fontsize=10,
+    )
     ax.set_xlabel("HDOP")
     ax.set_ylabel("true horizontal error (m)")
     ax.set_ylim(0, clip_limit([gps["err_h"][measured]], floor=FAULT_M * 1.2))
@@ -443,7 +453,7 @@ def _outcome_strip(ax, series: RunSeries, mids: list[str], t: np.ndarray) -> Non
         code = outcome_codes(series.scans, m)
         starts = np.r_[0, np.flatnonzero(np.diff(code)) + 1]
         stops = np.r_[starts[1:], len(code)]
-        for index, (name, colour) in enumerate(OUTCOMES):
+        for index, (_name, colour) in enumerate(OUTCOMES):
             spans = [(t[a], ends[b - 1] - t[a]) for a, b in zip(starts, stops) if code[a] == index]
             ax.broken_barh(spans, (row - 0.4, 0.8), facecolor=colour, edgecolor=colour, lw=0.6)
     ax.set_yticks(range(len(mids)), mids)

@@ -13,22 +13,36 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import open3d as o3d  # noqa: E402
-from matplotlib.collections import PolyCollection  # noqa: E402
-from rich.progress import track  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import open3d as o3d
+from matplotlib.collections import PolyCollection
+from rich.progress import track
 
-import worlds  # noqa: E402
-from riverbench.atomic import atomic_dir  # noqa: E402
-from sim import HDL32E, Scan, Trajectory  # noqa: E402
-from worlds.world import World  # noqa: E402
+import worlds
+from riverbench.atomic import atomic_dir
+from sim import HDL32E, Scan, Trajectory
+from worlds.world import World
 
 KIND_COLOURS = {
-    "water": "#cfe8ff", "wall": "#7f7f7f", "quay": "#9e9e9e", "bank": "#8fbf6f", "bridge_deck": "#d62728",
-    "pier": "#8c564b", "girder": "#ff7f0e", "arch": "#e377c2", "lock_wall": "#17becf", "lock_gate": "#1f77b4",
-    "building": "#4d4d4d", "tree": "#6b4226", "foliage": "#2ca02c", "dock": "#c49c94", "pontoon": "#dbdb8d",
-    "pile": "#7f7f7f", "moored_boat": "#f7f7f7", "other": "#bcbd22",
+    "water": "#cfe8ff",
+    "wall": "#7f7f7f",
+    "quay": "#9e9e9e",
+    "bank": "#8fbf6f",
+    "bridge_deck": "#d62728",
+    "pier": "#8c564b",
+    "girder": "#ff7f0e",
+    "arch": "#e377c2",
+    "lock_wall": "#17becf",
+    "lock_gate": "#1f77b4",
+    "building": "#4d4d4d",
+    "tree": "#6b4226",
+    "foliage": "#2ca02c",
+    "dock": "#c49c94",
+    "pontoon": "#dbdb8d",
+    "pile": "#7f7f7f",
+    "moored_boat": "#f7f7f7",
+    "other": "#bcbd22",
 }
 BRIDGE_MARGIN_M = 20.0  # revolutions this close to a bridge's GPS shadow count as "under_bridge"
 FIELD_STUDY_POINTS = (6_000, 27_000)  # points per revolution at which the study's matching succeeded
@@ -82,8 +96,11 @@ def point_stats(n_points: np.ndarray, n_water: np.ndarray) -> dict:
     """Median, p10, p90 of points per revolution, share in the field study's band, share of water returns."""
     lo, hi = FIELD_STUDY_POINTS
     return {
-        "revolutions": len(n_points), "median": float(np.median(n_points)), "p10": float(np.percentile(n_points, 10)),
-        "p90": float(np.percentile(n_points, 90)), "share_in_field_study_band": float(np.mean((n_points >= lo) & (n_points <= hi))),
+        "revolutions": len(n_points),
+        "median": float(np.median(n_points)),
+        "p10": float(np.percentile(n_points, 10)),
+        "p90": float(np.percentile(n_points, 90)),
+        "share_in_field_study_band": float(np.mean((n_points >= lo) & (n_points <= hi))),
         "water_return_share": float(n_water.sum() / max(n_points.sum(), 1)),
     }
 
@@ -105,7 +122,10 @@ def summarise(world: World, stats: list[RevolutionStats], scan: Scan) -> dict:
         "world": worlds.describe(world),
         "revolutions": len(stats),
         "points_per_revolution": {
-            "min": int(n.min()), "median": float(np.median(n)), "p90": float(np.percentile(n, 90)), "max": int(n.max()),
+            "min": int(n.min()),
+            "median": float(np.median(n)),
+            "p90": float(np.percentile(n, 90)),
+            "max": int(n.max()),
         },
         "share_in_field_study_band": float(np.mean((n >= lo) & (n <= hi))),
         "water_return_share": float(water.sum() / max(n.sum(), 1)),

@@ -57,8 +57,11 @@ def scenario_info(run_dir: Path, scenario) -> dict:
 
 def hdop_limits(info: dict) -> dict[str, float]:
     """The HDOP threshold of each estimator whose monitor is 'hdop' and sets one."""
-    return {e["id"]: float(e["monitor_params"]["max_hdop"]) for e in info.get("estimators", [])
-            if e.get("monitor") == "hdop" and "max_hdop" in e.get("monitor_params", {})}
+    return {
+        e["id"]: float(e["monitor_params"]["max_hdop"])
+        for e in info.get("estimators", [])
+        if e.get("monitor") == "hdop" and "max_hdop" in e.get("monitor_params", {})
+    }
 
 
 def name_of(ctx: Context) -> str:
@@ -71,11 +74,23 @@ def name_of(ctx: Context) -> str:
 
 # ---- blocks -----------------------------------------------------------------------------------------
 
+
 def build(ctx: Context) -> list:
     """Every block of the report, in reading order."""
-    return [*header(ctx), *failures(ctx), *expectations(ctx), *vessel(ctx), *figures(ctx, "vessel"), *estimators(ctx),
-            *figures(ctx, "map", "error", "yaw"),
-            *gps(ctx), *figures(ctx, "hdop_error"), *windows(ctx), *matchers(ctx), *figures(ctx, "matchers")]
+    return [
+        *header(ctx),
+        *failures(ctx),
+        *expectations(ctx),
+        *vessel(ctx),
+        *figures(ctx, "vessel"),
+        *estimators(ctx),
+        *figures(ctx, "map", "error", "yaw"),
+        *gps(ctx),
+        *figures(ctx, "hdop_error"),
+        *windows(ctx),
+        *matchers(ctx),
+        *figures(ctx, "matchers"),
+    ]
 
 
 def header(ctx: Context) -> list:
@@ -89,10 +104,15 @@ def header(ctx: Context) -> list:
         identity.append(f"world {info['world']}")
     identity.append(f"stretch {stretch_text(info.get('stretch', {}))}: t = {num(run.get('t_start'), '.1f')} … {num(run.get('t_end'), '.1f')} s")
     blocks.append(Text(" · ".join(identity), "meta"))
-    blocks.append(Text(f"{num(run.get('sim_s'), '.0f')} s simulated in {num(run.get('wall_s'), '.1f')} s "
-                       f"({num(run.get('realtime_factor'), '.1f')}× real time) · {run.get('scans', NULL)} scans · "
-                       f"{run.get('fixes', NULL)} GPS fixes · peak memory {num(run.get('peak_rss_mb'), '.0f')} MB · "
-                       f"{run.get('workers', NULL)} worker process{'' if run.get('workers') == 1 else 'es'}", "meta"))
+    blocks.append(
+        Text(
+            f"{num(run.get('sim_s'), '.0f')} s simulated in {num(run.get('wall_s'), '.1f')} s "
+            f"({num(run.get('realtime_factor'), '.1f')}× real time) · {run.get('scans', NULL)} scans · "
+            f"{run.get('fixes', NULL)} GPS fixes · peak memory {num(run.get('peak_rss_mb'), '.0f')} MB · "
+            f"{run.get('workers', NULL)} worker process{'' if run.get('workers') == 1 else 'es'}",
+            "meta",
+        )
+    )
     outcomes = ctx.metrics.get("expectations", [])
     passed = sum(bool(o.get("pass")) for o in outcomes)
     if outcomes:
@@ -113,8 +133,15 @@ def stretch_text(stretch: dict) -> str:
 
 def failures(ctx: Context) -> list:
     """Components that failed during the run (none: no section)."""
-    rows = [[Cell(f.get("component", NULL), css="fail"), Cell(str(f.get("id", NULL))), Cell(num(f.get("stamp"), ".2f")),
-             Cell(str(f.get("reason", "")), css="text")] for f in ctx.metrics.get("run", {}).get("failures", [])]
+    rows = [
+        [
+            Cell(f.get("component", NULL), css="fail"),
+            Cell(str(f.get("id", NULL))),
+            Cell(num(f.get("stamp"), ".2f")),
+            Cell(str(f.get("reason", "")), css="text"),
+        ]
+        for f in ctx.metrics.get("run", {}).get("failures", [])
+    ]
     return [Heading(2, "Failures"), Table(["component", "id", "at t (s)", "reason"], rows)] if rows else []
 
 
@@ -123,9 +150,15 @@ def expectations(ctx: Context) -> list:
     outcomes = ctx.metrics.get("expectations", [])
     if not outcomes:
         return [Heading(2, "Expectations"), Text("The scenario sets no expectations.")]
-    rows = [[Cell(o["expect"], css="text"), Cell(num(o.get("value"), ".4g")),
-             Cell("PASS" if o.get("pass") else "FAIL", css="pass" if o.get("pass") else "fail"),
-             Cell(o.get("reason") or "", css="text")] for o in outcomes]
+    rows = [
+        [
+            Cell(o["expect"], css="text"),
+            Cell(num(o.get("value"), ".4g")),
+            Cell("PASS" if o.get("pass") else "FAIL", css="pass" if o.get("pass") else "fail"),
+            Cell(o.get("reason") or "", css="text"),
+        ]
+        for o in outcomes
+    ]
     return [Heading(2, "Expectations"), Table(["expectation", "value", "result", "reason"], rows)]
 
 
@@ -136,19 +169,37 @@ def vessel(ctx: Context) -> list:
         return []
     control = ctx.info.get("control", {})
     mode = control.get("mode", "open_loop")
-    steering = ("open loop: the vessel follows the route exactly" if mode == "open_loop"
-                else f"closed loop: the autopilot steers on {control.get('steer_on', '?')} (heading from the {control.get('heading', 'compass')})")
-    ended = {"completed": "reached the end of the stretch", "collision": f"hit {node.get('collision_part')} at t = {num(node.get('collision_t'), '.1f')} s",
-             "time_limit": "ran out of time before the end of the stretch", "interrupted": "stopped early"}.get(node.get("outcome"), str(node.get("outcome")))
+    steering = (
+        "open loop: the vessel follows the route exactly"
+        if mode == "open_loop"
+        else f"closed loop: the autopilot steers on {control.get('steer_on', '?')} (heading from the {control.get('heading', 'compass')})"
+    )
+    ended = {
+        "completed": "reached the end of the stretch",
+        "collision": f"hit {node.get('collision_part')} at t = {num(node.get('collision_t'), '.1f')} s",
+        "time_limit": "ran out of time before the end of the stretch",
+        "interrupted": "stopped early",
+    }.get(node.get("outcome"), str(node.get("outcome")))
     cross = node.get("cross_track", {})
-    rows = [[Cell(str(node.get("outcome")), css="pass" if node.get("outcome") == "completed" else "fail"),
-             Cell(f"{metres(node.get('min_clearance_m'))} ({node.get('min_clearance_part') or NULL})"),
-             Cell(num(node.get("time_below_threshold_s"), ".1f")), Cell(metres(cross.get("mean"))), Cell(metres(cross.get("p95"))),
-             Cell(metres(cross.get("max"))), Cell(num(node.get("distance_m"), ".0f"))]]
-    note = (f"{steering}; it {ended}. Clearance: the distance from the hull to the nearest structure (overhead decks excluded); "
-            f"time within {num(node.get('clearance_threshold_m'), '.1f')} m of one; cross-track: the true offset from the route, metres.")
-    return [Heading(2, "Vessel"), Table(["outcome", "min clearance (nearest)", "s below threshold", "cross-track mean", "p95", "max",
-                                         "distance (m)"], rows, note)]
+    rows = [
+        [
+            Cell(str(node.get("outcome")), css="pass" if node.get("outcome") == "completed" else "fail"),
+            Cell(f"{metres(node.get('min_clearance_m'))} ({node.get('min_clearance_part') or NULL})"),
+            Cell(num(node.get("time_below_threshold_s"), ".1f")),
+            Cell(metres(cross.get("mean"))),
+            Cell(metres(cross.get("p95"))),
+            Cell(metres(cross.get("max"))),
+            Cell(num(node.get("distance_m"), ".0f")),
+        ]
+    ]
+    note = (
+        f"{steering}; it {ended}. Clearance: the distance from the hull to the nearest structure (overhead decks excluded); "
+        f"time within {num(node.get('clearance_threshold_m'), '.1f')} m of one; cross-track: the true offset from the route, metres."
+    )
+    return [
+        Heading(2, "Vessel"),
+        Table(["outcome", "min clearance (nearest)", "s below threshold", "cross-track mean", "p95", "max", "distance (m)"], rows, note),
+    ]
 
 
 ACCURACY_COLUMNS = [
@@ -180,17 +231,28 @@ def estimators(ctx: Context) -> list:
         return []
     monitors = {e["id"]: e.get("monitor", "none") for e in ctx.info.get("estimators", []) if "id" in e}
     labels = {eid: _failed_label(eid, n) for eid, n in nodes.items()}
-    accuracy = ranked_table("estimator", nodes, ACCURACY_COLUMNS, labels,
-                            note="Horizontal errors in metres over the scans with an estimate (available); RPE: mean error per 10 m "
-                                 "and per 100 m of true travel. Bold: best in its column.")
+    accuracy = ranked_table(
+        "estimator",
+        nodes,
+        ACCURACY_COLUMNS,
+        labels,
+        note="Horizontal errors in metres over the scans with an estimate (available); RPE: mean error per 10 m "
+        "and per 100 m of true travel. Bold: best in its column.",
+    )
     # no monitor: its scores mean nothing; a window kind the run never met: its column would be all '–'
-    nodes = {eid: {**(n if monitors.get(eid, "none") != "none" else _without_monitor(n)), "monitor_kind": monitors.get(eid)}
-             for eid, n in nodes.items()}
+    nodes = {
+        eid: {**(n if monitors.get(eid, "none") != "none" else _without_monitor(n)), "monitor_kind": monitors.get(eid)} for eid, n in nodes.items()
+    }
     columns = [c for c in DEGRADATION_COLUMNS if any(c.value(n) is not None for n in nodes.values())]
-    degradation = ranked_table("estimator", nodes, columns, labels,
-                               note="Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit). "
-                                    "Monitor: recall and false-alarm rate on measured fixes whose environment-added error exceeds 5 m. "
-                                    "Bold: best in its column.")
+    degradation = ranked_table(
+        "estimator",
+        nodes,
+        columns,
+        labels,
+        note="Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit). "
+        "Monitor: recall and false-alarm rate on measured fixes whose environment-added error exceeds 5 m. "
+        "Bold: best in its column.",
+    )
     return [Heading(2, "Estimators"), accuracy, Heading(3, "Through GPS degradation"), degradation]
 
 
@@ -223,10 +285,15 @@ def matchers(ctx: Context) -> list:
     nodes = ctx.metrics.get("matchers", {})
     if not nodes:
         return []
-    note = ("Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; "
-            "degenerate: usable matches with an unobserved direction. Errors (m) of the odometry chained from the true "
-            "start pose; APE aligned: after the best-fit rigid planar motion. Bold: best in its column.")
-    return [Heading(2, "Scan matchers"), ranked_table("matcher", nodes, MATCHER_COLUMNS, {mid: _failed_label(mid, n) for mid, n in nodes.items()}, note)]
+    note = (
+        "Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; "
+        "degenerate: usable matches with an unobserved direction. Errors (m) of the odometry chained from the true "
+        "start pose; APE aligned: after the best-fit rigid planar motion. Bold: best in its column."
+    )
+    return [
+        Heading(2, "Scan matchers"),
+        ranked_table("matcher", nodes, MATCHER_COLUMNS, {mid: _failed_label(mid, n) for mid, n in nodes.items()}, note),
+    ]
 
 
 def gps(ctx: Context) -> list:
@@ -234,14 +301,28 @@ def gps(ctx: Context) -> list:
     g = ctx.metrics.get("gps")
     if not g:
         return []
-    shares = Table(["fixes", "measured", "valid (incl. dead reckoning)", "blackout", "NLOS share", "HDOP median", "faulty (> 5 m)"],
-                   [[Cell(str(g.get("fixes", NULL))), Cell(share(g.get("availability"))), Cell(share(g.get("valid"))),
-                     Cell(share(g.get("blackout"))), Cell(share(g.get("nlos_share"))), Cell(num(g.get("hdop_median"), ".2f")),
-                     Cell(share(g.get("faulty_5m")))]])
+    shares = Table(
+        ["fixes", "measured", "valid (incl. dead reckoning)", "blackout", "NLOS share", "HDOP median", "faulty (> 5 m)"],
+        [
+            [
+                Cell(str(g.get("fixes", NULL))),
+                Cell(share(g.get("availability"))),
+                Cell(share(g.get("valid"))),
+                Cell(share(g.get("blackout"))),
+                Cell(share(g.get("nlos_share"))),
+                Cell(num(g.get("hdop_median"), ".2f")),
+                Cell(share(g.get("faulty_5m"))),
+            ]
+        ],
+    )
     keys = ("rmse", "mean", "median", "p95", "max")
-    errors = Table(["horizontal error of measured fixes (m)", *keys],
-                   [[Cell(label)] + [Cell(metres((g.get(node) or {}).get(k))) for k in keys]
-                    for node, label in (("error", "true error"), ("open_sky_error", "open-sky part"), ("added_error", "added by the environment"))])
+    errors = Table(
+        ["horizontal error of measured fixes (m)", *keys],
+        [
+            [Cell(label)] + [Cell(metres((g.get(node) or {}).get(k))) for k in keys]
+            for node, label in (("error", "true error"), ("open_sky_error", "open-sky part"), ("added_error", "added by the environment"))
+        ],
+    )
     return [Heading(2, "GPS"), shares, errors]
 
 
@@ -257,12 +338,19 @@ def windows(ctx: Context) -> list:
     eids = [e for e in ctx.metrics.get("estimators", {}) if f"{e}.max_error" in w]
     rows = []
     for i, kind in enumerate(kinds):
-        cells = [Cell(str(kind)), Cell(num(w["start"][i] - ctx.t0, ".1f")), Cell(num(w["end"][i] - ctx.t0, ".1f")), Cell(num(w["duration"][i], ".1f"))]
+        cells = [
+            Cell(str(kind)),
+            Cell(num(w["start"][i] - ctx.t0, ".1f")),
+            Cell(num(w["end"][i] - ctx.t0, ".1f")),
+            Cell(num(w["duration"][i], ".1f")),
+        ]
         cells += [Cell(passage_text(w[f"{e}.max_error"][i], w[f"{e}.exit_error"][i], w[f"{e}.recover_s"][i])) for e in eids]
         rows.append(cells)
-    note = ("Times in seconds since the first scan. Per estimator: the worst horizontal error in the window / at its end, "
-            "in metres, and (in brackets) how long after the window it took to come back within 1 m of its error at entry "
-            "(never: not by the end of the run).")
+    note = (
+        "Times in seconds since the first scan. Per estimator: the worst horizontal error in the window / at its end, "
+        "in metres, and (in brackets) how long after the window it took to come back within 1 m of its error at entry "
+        "(never: not by the end of the run)."
+    )
     return [Heading(2, "GPS-degradation windows"), Table(["kind", "start (s)", "end (s)", "duration (s)", *eids], rows, note)]
 
 
@@ -280,5 +368,3 @@ def figures(ctx: Context, *stems: str) -> list:
 
 
 # ---- rendering --------------------------------------------------------------------------------------
-
-

@@ -15,22 +15,44 @@ def run_table(result) -> Group:
     """Estimators and matchers of a finished run (fits 80 columns), then each expectation with its value."""
     m = result.metrics
     info = m["run"]
-    title = (f"{info['scenario']}: {info['sim_s']:.0f} s simulated in {info['wall_s']:.0f} s "
-             f"({_num(info['realtime_factor'], '.1f')}x real time), {info['scans']} scans, {info['fixes']} fixes")
+    title = (
+        f"{info['scenario']}: {info['sim_s']:.0f} s simulated in {info['wall_s']:.0f} s "
+        f"({_num(info['realtime_factor'], '.1f')}x real time), {info['scans']} scans, {info['fixes']} fixes"
+    )
     table = Table(title=title, box=box.SIMPLE_HEAD, caption="m and deg; outage: in GPS blackouts; *: matcher odometry")
     table.add_column("under test", no_wrap=True)
     for col in ("APE\nrmse", "APE\np95", "APE\nmax", "outage\nmax", "RPE\n100 m", "yaw\np95", "match\nok", "Hz"):
         table.add_column(col, justify="right")
     for eid, e in m["estimators"].items():
-        table.add_row(eid, _num(e["ape"]["rmse"]), _num(e["ape"]["p95"]), _num(e["ape"]["max"]),
-                      _num(e["windows"]["blackout"]["max_error"]), _num(e["rpe_100m"]["mean"]), _num(e["yaw"]["p95"], ".1f"), "", "")
+        table.add_row(
+            eid,
+            _num(e["ape"]["rmse"]),
+            _num(e["ape"]["p95"]),
+            _num(e["ape"]["max"]),
+            _num(e["windows"]["blackout"]["max_error"]),
+            _num(e["rpe_100m"]["mean"]),
+            _num(e["yaw"]["p95"], ".1f"),
+            "",
+            "",
+        )
     for mid, x in m["matchers"].items():
-        table.add_row(f"{mid}*", _num(x["ape"]["rmse"]), _num(x["ape"]["p95"]), _num(x["ape"]["max"]), "",
-                      _num(x["rpe_100m"]["mean"]), _num(x["yaw"]["p95"], ".1f"), _num(x["success"], ".0%"), _num(x["hz"], ".0f"))
+        table.add_row(
+            f"{mid}*",
+            _num(x["ape"]["rmse"]),
+            _num(x["ape"]["p95"]),
+            _num(x["ape"]["max"]),
+            "",
+            _num(x["rpe_100m"]["mean"]),
+            _num(x["yaw"]["p95"], ".1f"),
+            _num(x["success"], ".0%"),
+            _num(x["hz"], ".0f"),
+        )
     v = m.get("vessel", {})
-    vessel = (f"vessel: {v.get('outcome')}, min clearance {_num(v.get('min_clearance_m'))} m ({v.get('min_clearance_part') or '-'}), "
-              f"{_num(v.get('time_below_threshold_s'), '.1f')} s within {_num(v.get('clearance_threshold_m'), '.1f')} m, "
-              f"cross-track max {_num(v.get('cross_track', {}).get('max'))} m")
+    vessel = (
+        f"vessel: {v.get('outcome')}, min clearance {_num(v.get('min_clearance_m'))} m ({v.get('min_clearance_part') or '-'}), "
+        f"{_num(v.get('time_below_threshold_s'), '.1f')} s within {_num(v.get('clearance_threshold_m'), '.1f')} m, "
+        f"cross-track max {_num(v.get('cross_track', {}).get('max'))} m"
+    )
     expectations = Table(box=box.SIMPLE_HEAD, show_edge=False)
     for col, justify in (("", "left"), ("expectation", "left"), ("value", "right")):
         expectations.add_column(col, justify=justify)
@@ -52,8 +74,14 @@ def suite_table(cases) -> Table:
     for c in cases:
         passed = sum(e["pass"] for e in c.expectations)
         first = c.error or next((e["reason"] for e in c.expectations if not e["pass"]), "")
-        table.add_row(c.label, "[green]pass[/]" if c.passed else "[bold red]FAIL[/]", f"{passed}/{len(c.expectations)}",
-                      _num(c.realtime_factor, ".1f"), f"{c.wall_s:.0f}", first)
+        table.add_row(
+            c.label,
+            "[green]pass[/]" if c.passed else "[bold red]FAIL[/]",
+            f"{passed}/{len(c.expectations)}",
+            _num(c.realtime_factor, ".1f"),
+            f"{c.wall_s:.0f}",
+            first,
+        )
     return table
 
 

@@ -10,8 +10,10 @@ from matplotlib.figure import Figure
 from riverbench.atomic import atomic_path
 from scenarios.report import plots
 
-CAPTION = ("Clearance between the hull and the nearest structure (top; the dashed line is the scenario's threshold, "
-           "a cross marks a collision) and the true cross-track error against the route (bottom).")
+CAPTION = (
+    "Clearance between the hull and the nearest structure (top; the dashed line is the scenario's threshold, "
+    "a cross marks a collision) and the true cross-track error against the route (bottom)."
+)
 
 
 def write(run_dir: Path, threshold_m: float, outcome: dict) -> dict[str, str]:

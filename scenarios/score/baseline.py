@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -42,7 +42,7 @@ class ScenarioRuns(BaseModel):
     metrics: dict[str, list[float | None]] = Field(description="dotted metrics.json path -> value per seed (null: not measured)")
 
     @model_validator(mode="after")
-    def _aligned(self) -> "ScenarioRuns":
+    def _aligned(self) -> ScenarioRuns:
         if len(set(self.seeds)) != len(self.seeds):
             raise ValueError("seeds repeat")
         if len(self.hashes) != len(self.seeds):
@@ -56,8 +56,7 @@ class ScenarioRuns(BaseModel):
         """The metric at the given seeds (NaN where not measured or absent)."""
         column = self.metrics.get(metric, [])
         index = {s: i for i, s in enumerate(self.seeds)}
-        return [math.nan if (i := index.get(s)) is None or i >= len(column) or column[i] is None else float(column[i])
-                for s in seeds]
+        return [math.nan if (i := index.get(s)) is None or i >= len(column) or column[i] is None else float(column[i]) for s in seeds]
 
 
 class Baseline(BaseModel):
@@ -92,10 +91,12 @@ def load(path: Path) -> Baseline:
     except json.JSONDecodeError as exc:
         raise ValueError(f"baseline {path}: not valid JSON (truncated or corrupt?): {exc}") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ValueError(f"baseline {path}: not a riverbench baseline (no \"format\": \"{FORMAT}\")")
+        raise ValueError(f'baseline {path}: not a riverbench baseline (no "format": "{FORMAT}")')
     if data.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"baseline {path}: format version {data.get('format_version')!r}; this riverbench reads version "
-                         f"{FORMAT_VERSION} (make a new baseline with `riverbench suite --save-baseline`)")
+        raise ValueError(
+            f"baseline {path}: format version {data.get('format_version')!r}; this riverbench reads version "
+            f"{FORMAT_VERSION} (make a new baseline with `riverbench suite --save-baseline`)"
+        )
     try:
         return Baseline.model_validate(data)
     except ValidationError as exc:
@@ -126,11 +127,15 @@ def from_runs(runs: dict[str, list[tuple[int, str, dict | None, str]]], *, fast:
         seeded = sorted(seeded, key=lambda r: r[0])
         flat = [flatten(m) if m is not None else {} for _, _, m, _ in seeded]
         keys = sorted({k for f in flat for k in f})
-        scenarios[name] = ScenarioRuns(seeds=[s for s, *_ in seeded], hashes=[h for _, h, _, _ in seeded],
-                                       errors={str(s): e for s, _, _, e in seeded if e},
-                                       metrics={k: [f.get(k) for f in flat] for k in keys})
-    return Baseline(created_utc=datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"), provenance=provenance, fast=fast,
-                    overrides=list(overrides), scenarios=scenarios)
+        scenarios[name] = ScenarioRuns(
+            seeds=[s for s, *_ in seeded],
+            hashes=[h for _, h, _, _ in seeded],
+            errors={str(s): e for s, _, _, e in seeded if e},
+            metrics={k: [f.get(k) for f in flat] for k in keys},
+        )
+    return Baseline(
+        created_utc=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), provenance=provenance, fast=fast, overrides=list(overrides), scenarios=scenarios
+    )
 
 
 def from_cases(cases, *, fast: bool, overrides: list[str], provenance: dict) -> Baseline:

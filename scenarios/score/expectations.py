@@ -25,7 +25,7 @@ class Expectation:
         return f"{self.path} {self.op} {self.value:g}"
 
     @classmethod
-    def parse(cls, text: str, ids: dict[str, set[str]] | None = None) -> "Expectation":
+    def parse(cls, text: str, ids: dict[str, set[str]] | None = None) -> Expectation:
         """Parse 'path op number'; with `ids` (estimators / matchers -> ids) the path's owner must exist."""
         match = _SYNTAX.match(str(text))
         if not match:
@@ -45,7 +45,7 @@ class Expectation:
                 raise ValueError(f"expectation {text!r}: no {head[0][:-1]} with id {head[1]!r} (have {', '.join(sorted(ids[head[0]])) or 'none'})")
         return cls(path, op, value)
 
-    def check(self, metrics: dict) -> "Outcome":
+    def check(self, metrics: dict) -> Outcome:
         """Evaluate against a metrics dict; a missing or non-numeric metric fails with the reason."""
         node = metrics
         for i, key in enumerate(self.path.split(".")):

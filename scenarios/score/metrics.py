@@ -52,21 +52,55 @@ FAMILIES: tuple[Family, ...] = (
     Family("component failures", ("estimators.*.failed", "matchers.*.failed"), "lower", any_seed=True),
     Family("collisions", ("vessel.collisions",), "lower", any_seed=True),
     Family("completion", ("vessel.completed",), "higher", any_seed=True),
-    Family("scenario", ("run.*", "gps.*", "estimators.*.windows.*.count", "estimators.*.windows.*.seconds",
-                        "estimators.*.monitor.*.faulty", "*.rpe_*m.pairs", "*.failed_at", "matchers.*.gated",
-                        "matchers.*.points.*", "vessel.clearance_threshold_m", "vessel.distance_m",
-                        "vessel.collision_t", "vessel.min_clearance_t"), "none"),
-    Family("position error", ("*.ape.*", "*.ape_aligned.*", "*.rpe_*m.rmse", "*.rpe_*m.mean", "*.rpe_*m.median",
-                              "*.rpe_*m.p95", "*.rpe_*m.max", "estimators.*.windows.*.max_error",
-                              "estimators.*.windows.*.exit_error", "estimators.*.windows.*.added", "vessel.cross_track.*"),
-           "lower", abs_tol=0.05, rel_tol=0.10),
+    Family(
+        "scenario",
+        (
+            "run.*",
+            "gps.*",
+            "estimators.*.windows.*.count",
+            "estimators.*.windows.*.seconds",
+            "estimators.*.monitor.*.faulty",
+            "*.rpe_*m.pairs",
+            "*.failed_at",
+            "matchers.*.gated",
+            "matchers.*.points.*",
+            "vessel.clearance_threshold_m",
+            "vessel.distance_m",
+            "vessel.collision_t",
+            "vessel.min_clearance_t",
+        ),
+        "none",
+    ),
+    Family(
+        "position error",
+        (
+            "*.ape.*",
+            "*.ape_aligned.*",
+            "*.rpe_*m.rmse",
+            "*.rpe_*m.mean",
+            "*.rpe_*m.median",
+            "*.rpe_*m.p95",
+            "*.rpe_*m.max",
+            "estimators.*.windows.*.max_error",
+            "estimators.*.windows.*.exit_error",
+            "estimators.*.windows.*.added",
+            "vessel.cross_track.*",
+        ),
+        "lower",
+        abs_tol=0.05,
+        rel_tol=0.10,
+    ),
     Family("drift per distance", ("*.rpe_*m.percent",), "lower", abs_tol=0.05, rel_tol=0.10),
     Family("heading error", ("*.yaw.*",), "lower", abs_tol=0.1, rel_tol=0.10),
     Family("recovery time", ("estimators.*.windows.*.recover_s",), "lower", abs_tol=0.5, rel_tol=0.20),
     Family("recovered share", ("estimators.*.windows.*.recovered",), "higher", abs_tol=0.01),
     Family("availability", ("estimators.*.available",), "higher", abs_tol=0.005),
-    Family("fault detection", ("estimators.*.monitor.*.recall", "estimators.*.monitor.*.recall_at_5pct_fa",
-                               "estimators.*.monitor.*.precision"), "higher", abs_tol=0.03),
+    Family(
+        "fault detection",
+        ("estimators.*.monitor.*.recall", "estimators.*.monitor.*.recall_at_5pct_fa", "estimators.*.monitor.*.precision"),
+        "higher",
+        abs_tol=0.03,
+    ),
     Family("false alarms", ("estimators.*.monitor.*.false_alarm_rate",), "lower", abs_tol=0.01, rel_tol=0.10),
     Family("matching success", ("matchers.*.success",), "higher", abs_tol=0.01),
     Family("degenerate matches", ("matchers.*.degenerate",), "lower", abs_tol=0.02),
@@ -88,8 +122,13 @@ def stats(values: np.ndarray) -> dict:
     v = v[np.isfinite(v)]
     if not len(v):
         return {k: math.nan for k in ("rmse", "mean", "median", "p95", "max")}
-    return {"rmse": float(np.sqrt(np.mean(v**2))), "mean": float(v.mean()), "median": float(np.median(v)),
-            "p95": float(np.percentile(v, 95)), "max": float(v.max())}
+    return {
+        "rmse": float(np.sqrt(np.mean(v**2))),
+        "mean": float(v.mean()),
+        "median": float(np.median(v)),
+        "p95": float(np.percentile(v, 95)),
+        "max": float(v.max()),
+    }
 
 
 def yaw_of(poses: np.ndarray) -> np.ndarray:
@@ -177,11 +216,17 @@ def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray) 
     for kind in win.KINDS:
         mine = [w for w in windows if w.kind == kind]
         passages = [win.passage(w, t, error) for w in mine]
-        worst = lambda key: _nanmax([getattr(p, key) for p in passages])  # noqa: E731
+        worst = lambda key, passages=passages: _nanmax([getattr(p, key) for p in passages])
         recovered = [math.isfinite(p.recover_s) for p in passages]
-        out[kind] = {"count": len(mine), "seconds": float(sum(w.duration for w in mine)),
-                     "max_error": worst("max_error"), "exit_error": worst("exit_error"), "added": worst("added"),
-                     "recover_s": worst("recover_s"), "recovered": float(np.mean(recovered)) if recovered else math.nan}
+        out[kind] = {
+            "count": len(mine),
+            "seconds": float(sum(w.duration for w in mine)),
+            "max_error": worst("max_error"),
+            "exit_error": worst("exit_error"),
+            "added": worst("added"),
+            "recover_s": worst("recover_s"),
+            "recovered": float(np.mean(recovered)) if recovered else math.nan,
+        }
     return out
 
 
@@ -197,8 +242,7 @@ def monitor_metrics(fixes: FixTable, eid: str) -> dict:
     flagged = ~fixes.trusted[eid][measured]
     statistic = fixes.statistic[eid][measured]
     out = {}
-    for name, faulty in (("error_5m", fixes.horizontal_error[measured] > FAULT_M),
-                         ("added_5m", fixes.added_error[measured] > FAULT_M)):
+    for name, faulty in (("error_5m", fixes.horizontal_error[measured] > FAULT_M), ("added_5m", fixes.added_error[measured] > FAULT_M)):
         tp = int((flagged & faulty).sum())
         out[name] = {
             "faulty": int(faulty.sum()),
@@ -244,11 +288,15 @@ def matcher_metrics(rec: RunRecord, mid: str) -> dict:
         "gated": float(m.gated.mean()) if len(m.gated) else math.nan,
         "degenerate": float(m.degenerate[m.ok].mean()) if m.ok.any() else math.nan,
         "hz": float(1.0 / np.median(seconds)) if len(seconds) and np.median(seconds) > 0 else math.nan,
-        "ms": {"median": float(1e3 * np.median(seconds)) if len(seconds) else math.nan,
-               "p95": float(1e3 * np.percentile(seconds, 95)) if len(seconds) else math.nan},
-        "points": {"median": float(np.median(m.points)) if len(m.points) else math.nan,
-                   "p10": float(np.percentile(m.points, 10)) if len(m.points) else math.nan,
-                   "p90": float(np.percentile(m.points, 90)) if len(m.points) else math.nan},
+        "ms": {
+            "median": float(1e3 * np.median(seconds)) if len(seconds) else math.nan,
+            "p95": float(1e3 * np.percentile(seconds, 95)) if len(seconds) else math.nan,
+        },
+        "points": {
+            "median": float(np.median(m.points)) if len(m.points) else math.nan,
+            "p10": float(np.percentile(m.points, 10)) if len(m.points) else math.nan,
+            "p90": float(np.percentile(m.points, 90)) if len(m.points) else math.nan,
+        },
         "ape": stats(horizontal_error(m.pose, rec.truth)),
         "ape_aligned": stats(horizontal_error(aligned, rec.truth)),
         **{f"rpe_{d:g}m": rpe(m.pose, rec.truth, d) for d in RPE_DISTANCES_M},

@@ -150,7 +150,7 @@ class Recorder:
 
     def fix(self, fix: GnssFix, verdicts: dict[str, tuple[bool, float]]) -> None:
         """One receiver epoch with each estimator's (trusted, statistic)."""
-        add = lambda k, v: self._add(self.fix_rows, k, v)  # noqa: E731
+        add = lambda k, v: self._add(self.fix_rows, k, v)
         truth = fix.truth
         nan3 = np.full(3, np.nan)
         add("t", fix.stamp)
@@ -179,22 +179,39 @@ class Recorder:
             return rows[key].array().astype(dtype, copy=False) if key in rows else np.zeros(shape, dtype=dtype)
 
         matches = {
-            m: MatcherTrack(col(s, f"ok:{m}", dtype=bool), col(s, f"gated:{m}", dtype=bool), col(s, f"degenerate:{m}", dtype=bool),
-                            col(s, f"points:{m}", dtype=int), col(s, f"seconds:{m}"), col(s, f"pose:{m}", (0, 4, 4)))
+            m: MatcherTrack(
+                col(s, f"ok:{m}", dtype=bool),
+                col(s, f"gated:{m}", dtype=bool),
+                col(s, f"degenerate:{m}", dtype=bool),
+                col(s, f"points:{m}", dtype=int),
+                col(s, f"seconds:{m}"),
+                col(s, f"pose:{m}", (0, 4, 4)),
+            )
             for m in self.matcher_ids
         }
         fixes = FixTable(
-            t=col(f, "t"), quality=col(f, "quality", dtype=int), enu=col(f, "enu", (0, 3)), lat=col(f, "lat"),
-            lon=col(f, "lon"), alt=col(f, "alt"), num_sats=col(f, "num_sats", dtype=int), hdop=col(f, "hdop"),
-            error=col(f, "error", (0, 3)), open_sky_error=col(f, "open_sky_error", (0, 3)),
+            t=col(f, "t"),
+            quality=col(f, "quality", dtype=int),
+            enu=col(f, "enu", (0, 3)),
+            lat=col(f, "lat"),
+            lon=col(f, "lon"),
+            alt=col(f, "alt"),
+            num_sats=col(f, "num_sats", dtype=int),
+            hdop=col(f, "hdop"),
+            error=col(f, "error", (0, 3)),
+            open_sky_error=col(f, "open_sky_error", (0, 3)),
             nlos_used=col(f, "nlos_used", dtype=bool),
             trusted={e: col(f, f"trusted:{e}", dtype=bool) for e in self.estimator_ids},
             statistic={e: col(f, f"stat:{e}") for e in self.estimator_ids},
         )
         return RunRecord(
-            scan_t=col(s, "t"), truth=col(s, "truth", (0, 4, 4)),
+            scan_t=col(s, "t"),
+            truth=col(s, "truth", (0, 4, 4)),
             estimates={e: col(s, f"est:{e}", (0, 4, 4)) for e in self.estimator_ids},
-            matches=matches, fixes=fixes, failures=list(self.failures), injected=list(injected),
+            matches=matches,
+            fixes=fixes,
+            failures=list(self.failures),
+            injected=list(injected),
         )
 
 

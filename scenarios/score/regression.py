@@ -57,11 +57,24 @@ class MetricVerdict:
 
     def as_dict(self) -> dict:
         base, now = np.asarray(self.base), np.asarray(self.now)
-        return {"scenario": self.scenario, "metric": self.metric, "family": self.family.name, "better": self.family.better,
-                "verdict": self.verdict, "identical": self.identical, "gating": self.gating, "seeds": self.seeds,
-                "baseline": _json(self.base), "now": _json(self.now), "baseline_median": _json(_median(base)),
-                "baseline_min": _json(_nan(np.nanmin, base)), "baseline_max": _json(_nan(np.nanmax, base)),
-                "now_median": _json(_median(now)), "change": _json(self.change), "threshold": _json(self.threshold)}
+        return {
+            "scenario": self.scenario,
+            "metric": self.metric,
+            "family": self.family.name,
+            "better": self.family.better,
+            "verdict": self.verdict,
+            "identical": self.identical,
+            "gating": self.gating,
+            "seeds": self.seeds,
+            "baseline": _json(self.base),
+            "now": _json(self.now),
+            "baseline_median": _json(_median(base)),
+            "baseline_min": _json(_nan(np.nanmin, base)),
+            "baseline_max": _json(_nan(np.nanmax, base)),
+            "now_median": _json(_median(now)),
+            "change": _json(self.change),
+            "threshold": _json(self.threshold),
+        }
 
 
 @dataclass
@@ -100,8 +113,12 @@ class Comparison:
     def sentence(self) -> str:
         """One line: how many metrics regressed, improved, changed, stayed; what could not be compared."""
         c = self.counts()
-        parts = [f"{len(self.regressions)} regressed", f"{c['improved']} improved", f"{c['changed']} changed (no direction)",
-                 f"{c['unchanged']} unchanged ({c['identical']} bit-identical)"]
+        parts = [
+            f"{len(self.regressions)} regressed",
+            f"{c['improved']} improved",
+            f"{c['changed']} changed (no direction)",
+            f"{c['unchanged']} unchanged ({c['identical']} bit-identical)",
+        ]
         if c["wall_clock_regressed"]:
             parts.append(f"{c['wall_clock_regressed']} wall-clock slower (not gating)")
         extra = []
@@ -117,11 +134,20 @@ class Comparison:
 
     def as_dict(self) -> dict:
         """What suite.json and compare-baselines --json carry: counts, provenance of both sides, every non-identical metric."""
-        return {"counts": self.counts(), "failed": self.failed, "baseline": self.base_provenance, "now": self.now_provenance,
-                "baseline_described": describe(self.base_provenance), "now_described": describe(self.now_provenance),
-                "seeds": self.seeds, "new_scenarios": self.new_scenarios, "missing_scenarios": self.missing_scenarios,
-                "changed_scenarios": self.changed_scenarios, "failed_runs": self.failed_runs,
-                "metrics": [v.as_dict() for v in self.verdicts if not v.identical]}
+        return {
+            "counts": self.counts(),
+            "failed": self.failed,
+            "baseline": self.base_provenance,
+            "now": self.now_provenance,
+            "baseline_described": describe(self.base_provenance),
+            "now_described": describe(self.now_provenance),
+            "seeds": self.seeds,
+            "new_scenarios": self.new_scenarios,
+            "missing_scenarios": self.missing_scenarios,
+            "changed_scenarios": self.changed_scenarios,
+            "failed_runs": self.failed_runs,
+            "metrics": [v.as_dict() for v in self.verdicts if not v.identical],
+        }
 
 
 def compare(base: Baseline, now: Baseline, seeds: int | None = None) -> Comparison:

@@ -40,8 +40,16 @@ class VesselLog:
 
     COLUMNS = ("t", "x", "y", "yaw", "station_m", "cross_track_m", "clearance_m", "nearest_part", "cmd_left", "cmd_right")
 
-    def add(self, t: float, pose: np.ndarray, station: float, cross: float, clearance: Clearance, part: str,
-            commands: tuple[float, float] = (np.nan, np.nan)) -> None:
+    def add(
+        self,
+        t: float,
+        pose: np.ndarray,
+        station: float,
+        cross: float,
+        clearance: Clearance,
+        part: str,
+        commands: tuple[float, float] = (np.nan, np.nan),
+    ) -> None:
         yaw = float(np.arctan2(pose[1, 0], pose[0, 0]))
         self.rows.append((t, float(pose[0, 3]), float(pose[1, 3]), yaw, station, cross, clearance.distance_m, part, *commands))
 

@@ -49,12 +49,14 @@ class Stretch(BaseModel):
     end_m: float | None = Field(None, gt=0, description="route station where the stretch ends, m")
 
     @model_validator(mode="after")
-    def _one_kind(self) -> "Stretch":
+    def _one_kind(self) -> Stretch:
         by_time = self.start_s is not None or self.end_s is not None
         by_station = self.start_m is not None or self.end_m is not None
         if by_time and by_station:
-            raise ValueError("give the stretch by time (start_s, end_s) or by station (start_m, end_m), not both "
-                             "(--set replaces it whole with stretch={start_s = 10.0, end_s = 60.0})")
+            raise ValueError(
+                "give the stretch by time (start_s, end_s) or by station (start_m, end_m), not both "
+                "(--set replaces it whole with stretch={start_s = 10.0, end_s = 60.0})"
+            )
         for a, b in ((self.start_s, self.end_s), (self.start_m, self.end_m)):
             if a is not None and b is not None and not b > a:
                 raise ValueError(f"the stretch must end after it starts (got {a} .. {b})")
@@ -104,7 +106,7 @@ class MatcherSpec(BaseModel):
         return self.kind or self.plugin or ""
 
     @model_validator(mode="after")
-    def _resolve(self) -> "MatcherSpec":
+    def _resolve(self) -> MatcherSpec:
         _check_ref("matcher", self.id, self.kind, self.plugin)
         model = matcher.params_model(self.ref)
         self.params = _validated(model, self.params, f"matcher {self.id!r} ({self.ref})")
@@ -130,7 +132,7 @@ class EstimatorSpec(BaseModel):
         return self.kind or self.plugin or ""
 
     @model_validator(mode="after")
-    def _resolve(self) -> "EstimatorSpec":
+    def _resolve(self) -> EstimatorSpec:
         _check_ref("estimator", self.id, self.kind, self.plugin)
         model = fusion.params_model(self.ref)
         where = f"estimator {self.id!r} ({self.ref})"
@@ -150,8 +152,9 @@ class EstimatorSpec(BaseModel):
     def build(self, seed: int):
         """A fresh fusion Estimator with these settings; a random one (pf) draws from the scenario's seed."""
         seeded = {"seed": seed} if "seed" in fusion.params_model(self.ref).model_fields else {}
-        return fusion.create(self.ref, matcher=self.matcher or "none", monitor=self.monitor,
-                             monitor_params=self.monitor_params, **self.params, **seeded)
+        return fusion.create(
+            self.ref, matcher=self.matcher or "none", monitor=self.monitor, monitor_params=self.monitor_params, **self.params, **seeded
+        )
 
 
 def _check_ref(what: str, cid: str, kind: str | None, plugin: str | None) -> None:
@@ -180,14 +183,17 @@ class Control(BaseModel):
     mode: Literal["open_loop", "closed_loop"] = Field("open_loop", description="open_loop or closed_loop")
     steer_on: str = Field("truth", description="closed loop: id of the estimator the autopilot steers on, or 'truth'")
     heading: Literal["compass", "estimator"] = Field(
-        "compass", description="closed loop: the heading the autopilot steers on: the boat's compass (AHRS) or the estimator's yaw")
+        "compass", description="closed loop: the heading the autopilot steers on: the boat's compass (AHRS) or the estimator's yaw"
+    )
     compass_sigma_deg: float = Field(1.0, ge=0, description="closed loop: white noise of the compass heading (1-sigma)")
     gyro_sigma_dps: float = Field(0.3, ge=0, description="closed loop: white noise of the gyro's yaw rate (1-sigma, deg/s)")
     autopilot: AutopilotConfig = Field(default_factory=AutopilotConfig, description="gains of the LOS autopilot")
     dynamics: WamvDynamics = Field(default_factory=WamvDynamics, description="the WAM-V 16 manoeuvring model")
     current_enu_mps: tuple[float, float] = Field((0.0, 0.0), description="closed loop: uniform water current (east, north), m/s")
     time_limit_factor: float = Field(2.0, gt=1.0, description="closed loop: the run gives up after this multiple of the stretch's open-loop time")
-    clearance_threshold_m: float = Field(3.0, ge=0, description="vessel.time_below_threshold_s counts the time the hull is closer than this to a structure")
+    clearance_threshold_m: float = Field(
+        3.0, ge=0, description="vessel.time_below_threshold_s counts the time the hull is closer than this to a structure"
+    )
 
 
 class FastVariant(BaseModel):
@@ -257,13 +263,11 @@ class Scenario(BaseModel):
             return data  # the section's own validation names the problem
         raw = data.get("estimators", default_lists()["estimators"])
         if isinstance(raw, list) and all(isinstance(e, dict) for e in raw):
-            data = {**data, "estimators": [
-                {**e, "params": {"mount": mount, "antenna": antenna, **(e.get("params") or {})}} for e in raw
-            ]}
+            data = {**data, "estimators": [{**e, "params": {"mount": mount, "antenna": antenna, **(e.get("params") or {})}} for e in raw]}
         return data
 
     @model_validator(mode="after")
-    def _consistent(self) -> "Scenario":
+    def _consistent(self) -> Scenario:
         if self.world in worlds.available():
             try:
                 self.world_params = worlds.resolve_params(self.world, **self.world_params)
@@ -285,7 +289,9 @@ class Scenario(BaseModel):
                 raise ValueError(f"estimators.{est.id}.matcher: no matcher with id {est.matcher!r} (have {', '.join(matcher_ids) or 'none'})")
         steer = self.control.steer_on
         if self.control.mode == "closed_loop" and steer != "truth" and steer not in [e.id for e in self.estimators]:
-            raise ValueError(f"control.steer_on: no estimator with id {steer!r} (have {', '.join(e.id for e in self.estimators) or 'none'}, or 'truth')")
+            raise ValueError(
+                f"control.steer_on: no estimator with id {steer!r} (have {', '.join(e.id for e in self.estimators) or 'none'}, or 'truth')"
+            )
         ids = {"estimators": set(e.id for e in self.estimators), "matchers": set(matcher_ids)}
         self.expect = [Expectation.parse(text, ids).text for text in self.expect]
         if self.fast is not None:
@@ -316,7 +322,7 @@ class Scenario(BaseModel):
     def expectations(self) -> list[Expectation]:
         return [Expectation.parse(text) for text in self.expect]
 
-    def fast_variant(self) -> "Scenario":
+    def fast_variant(self) -> Scenario:
         """The scenario `suite --fast` runs: its [fast] stretch and expectations (itself without one)."""
         if self.fast is None:
             return self

@@ -34,16 +34,17 @@ def _add_model(defs: dict, model: type[BaseModel], drop: tuple[str, ...] = ()) -
 def _kind_or_plugin(spec: dict, kinds: list[str]) -> None:
     """A matcher or estimator table names exactly one of kind (a registered name) and plugin (a class path)."""
     spec["properties"]["kind"] = {"enum": kinds, "description": spec["properties"]["kind"].get("description", "")}
-    spec["properties"]["plugin"] = {"type": "string", "pattern": PATH_PATTERN,
-                                    "description": spec["properties"]["plugin"].get("description", "")}
+    spec["properties"]["plugin"] = {"type": "string", "pattern": PATH_PATTERN, "description": spec["properties"]["plugin"].get("description", "")}
     spec["required"] = [key for key in spec.get("required", []) if key != "kind"]
     spec["oneOf"] = [{"required": ["kind"]}, {"required": ["plugin"]}]
 
 
 def _by_kind(selector: str, table: str, models: dict[str, dict]) -> list[dict]:
     """if <selector> == kind then <table> follows that kind's model; one clause per kind."""
-    return [{"if": {"properties": {selector: {"const": kind}}, "required": [selector]},
-             "then": {"properties": {table: ref}}} for kind, ref in models.items()]
+    return [
+        {"if": {"properties": {selector: {"const": kind}}, "required": [selector]}, "then": {"properties": {table: ref}}}
+        for kind, ref in models.items()
+    ]
 
 
 def scenario_json_schema() -> dict:
@@ -62,8 +63,10 @@ def scenario_json_schema() -> dict:
     spec["allOf"] = _by_kind("kind", "params", matchers)
     spec = defs["EstimatorSpec"]
     _kind_or_plugin(spec, list(estimators))
-    spec["properties"]["monitor"] = {"anyOf": [{"enum": list(monitors)}, {"type": "string", "pattern": PATH_PATTERN}],
-                                     "description": spec["properties"]["monitor"].get("description", "")}
+    spec["properties"]["monitor"] = {
+        "anyOf": [{"enum": list(monitors)}, {"type": "string", "pattern": PATH_PATTERN}],
+        "description": spec["properties"]["monitor"].get("description", ""),
+    }
     spec["allOf"] = _by_kind("kind", "params", estimators) + _by_kind("monitor", "monitor_params", monitors)
     schema["allOf"] = _by_kind("world", "world_params", presets)
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"

@@ -31,8 +31,9 @@ class ComplementaryParams(BaseEstimatorParams):
     position_gain: float = Field(0.1, gt=0.0, le=1.0, description="share of a trusted fix's disagreement taken per fix [0.1]")
     heading_gain: float = Field(0.1, gt=0.0, le=1.0, description="share of the GPS course's disagreement taken per course update [0.1]")
     course_min_m: float = Field(10.0, gt=0.0, description="GPS travel between course updates; the first sets the heading [10 m]")
-    max_course_error_deg: float = Field(10.0, gt=0.0,
-                                        description="a course update that disagrees more is ignored: a fault the monitor missed [10 deg]")
+    max_course_error_deg: float = Field(
+        10.0, gt=0.0, description="a course update that disagrees more is ignored: a fault the monitor missed [10 deg]"
+    )
     uere_m: float = Field(3.0, gt=0.0, description="a fix's per-axis sigma is uere_m * HDOP / sqrt(2) [3 m]")
     match_sigma_m: float = Field(0.2, gt=0.0, description="per-scan sigma assumed for a match without a covariance [0.2 m]")
 
@@ -102,8 +103,7 @@ class ComplementaryFilter:
         """What the monitor may compare the fix with: the predicted antenna position, the heading, the odometry."""
         known = self._xy is not None and self._yaw is not None
         predicted = (self._antenna(), np.eye(2) * self._var, obs.cov) if known else None
-        return FixContext(predicted=predicted, yaw=self._yaw, yaw_var=self._yaw_var if known else None,
-                          lever=self._lever, odometry=self._track)
+        return FixContext(predicted=predicted, yaw=self._yaw, yaw_var=self._yaw_var if known else None, lever=self._lever, odometry=self._track)
 
     def _antenna(self) -> np.ndarray:
         """The antenna's (x, y) by the current estimate."""

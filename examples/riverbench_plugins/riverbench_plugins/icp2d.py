@@ -37,9 +37,9 @@ class Icp2dParams(BaseModel):
     max_iterations: int = Field(30, ge=1, description="Gauss-Newton steps at most [30]")
     min_overlap: float = Field(0.5, gt=0.0, le=1.0, description="a smaller share of points with a partner fails the match [0.5]")
     max_speed_mps: float = Field(10.0, gt=0.0, description="faster estimated motion fails the match [10 m/s]")
-    degenerate_ratio: float = Field(0.01, gt=0.0, lt=1.0,
-                                    description="a translation direction with less than this share of the strongest one's "
-                                                "information is degenerate [0.01]")
+    degenerate_ratio: float = Field(
+        0.01, gt=0.0, lt=1.0, description="a translation direction with less than this share of the strongest one's information is degenerate [0.01]"
+    )
     degenerate_sigma_m: float = Field(1.0, gt=0.0, description="sigma reported along a degenerate direction, per scan [1 m]")
 
 
@@ -132,8 +132,9 @@ class Icp2d:
         cov[np.ix_([0, 1, 5], [0, 1, 5])] = cov3
         return x, {"cov": cov, "overlap": overlap, "iterations": iteration, "rmse": math.sqrt(sigma2), "degenerate": degenerate}, ""
 
-    def _linearise(self, xy: np.ndarray, x: np.ndarray, ref: np.ndarray, normals: np.ndarray,
-                   tree: cKDTree) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    def _linearise(
+        self, xy: np.ndarray, x: np.ndarray, ref: np.ndarray, normals: np.ndarray, tree: cKDTree
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """Point-to-line residuals at `x`, their Jacobian, Huber weights and the share of points paired."""
         c, s = math.cos(x[2]), math.sin(x[2])
         rotated = xy @ np.array([[c, s], [-s, c]])

@@ -29,8 +29,10 @@ from scenarios.report.compare.verdicts import conf_sentences, overall_sentences
 from scenarios.report.document import NULL, Cell, Column, Heading, Image, Table, Text
 from scenarios.score.metrics import FAULT_M
 
-SPREAD_NOTE = ("Median over seeds (min–max over seeds) of the runs in which the component did not fail (failed runs are counted "
-               "apart); bold: best median in its column.")
+SPREAD_NOTE = (
+    "Median over seeds (min–max over seeds) of the runs in which the component did not fail (failed runs are counted "
+    "apart); bold: best median in its column."
+)
 
 
 def seeds_text(seeds: list[int | None]) -> str:
@@ -43,8 +45,13 @@ def seeds_text(seeds: list[int | None]) -> str:
 
 def build(confs: list[Configuration], images: dict[str, str], stopped: list[Unfinished], out_dir: Path) -> list:
     """Every block of the comparison report, in reading order."""
-    return [*header(confs), *summary_section(confs), *(b for conf in confs for b in conf_section(conf, images)),
-            *unfinished_section(stopped, out_dir), *runs_section(confs, out_dir)]
+    return [
+        *header(confs),
+        *summary_section(confs),
+        *(b for conf in confs for b in conf_section(conf, images)),
+        *unfinished_section(stopped, out_dir),
+        *runs_section(confs, out_dir),
+    ]
 
 
 def header(confs: list[Configuration]) -> list:
@@ -52,11 +59,19 @@ def header(confs: list[Configuration]) -> list:
     runs = [r for c in confs for r in c.runs]
     names = sorted({c.scenario for c in confs})
     per = sorted({len(c.runs) for c in confs})
-    meta = (f"{plural(len(runs), 'run')} · {plural(len(names), 'scenario')} ({', '.join(names)}) · {plural(len(confs), 'configuration')} · "
-            f"seeds {seeds_text([r.seed for r in runs])} ({'–'.join(map(str, (per[0], per[-1]) if len(per) > 1 else per))} per configuration)")
-    return [Heading(1, "riverbench comparison"), Text(meta, "meta"),
-            Text("Each number is the median over the seeds of a configuration, in brackets the range (min–max) over those seeds. "
-                 "A difference is called clear when the two ranges do not overlap; with one seed the spread is unknown.", "note")]
+    meta = (
+        f"{plural(len(runs), 'run')} · {plural(len(names), 'scenario')} ({', '.join(names)}) · {plural(len(confs), 'configuration')} · "
+        f"seeds {seeds_text([r.seed for r in runs])} ({'–'.join(map(str, (per[0], per[-1]) if len(per) > 1 else per))} per configuration)"
+    )
+    return [
+        Heading(1, "riverbench comparison"),
+        Text(meta, "meta"),
+        Text(
+            "Each number is the median over the seeds of a configuration, in brackets the range (min–max) over those seeds. "
+            "A difference is called clear when the two ranges do not overlap; with one seed the spread is unknown.",
+            "note",
+        ),
+    ]
 
 
 def summary_section(confs: list[Configuration]) -> list:
@@ -81,7 +96,9 @@ def spread_text(s: Spread | None, fmt: Callable) -> str:
 
 
 def spread_column(title: str, base: Column, locate: Callable[[dict], dict], failures: bool = False) -> Column:
-    """A column over aggregated nodes: `locate` finds the component's node, whose Spread under base's title is ranked by its median and printed with its range."""
+    """A column over aggregated nodes: `locate` finds the component's node, whose Spread under base's title is ranked by
+    its median and printed with its range."""
+
     def median(node: dict) -> float | None:
         """The median, ranked and printed first."""
         s = locate(node).get(base.title)
@@ -101,8 +118,13 @@ def _itself(node: dict) -> dict:
     return node
 
 
-FAILURE_COLUMN = Column("failure rate", lambda n: n["failures"] / n["runs"] if n["runs"] else None, document.share, None,
-                        detail=lambda n: f" ({n['failures']}/{n['runs']})")
+FAILURE_COLUMN = Column(
+    "failure rate",
+    lambda n: n["failures"] / n["runs"] if n["runs"] else None,
+    document.share,
+    None,
+    detail=lambda n: f" ({n['failures']}/{n['runs']})",
+)
 """Share of a configuration's runs in which the component failed (not ranked: no failure is no merit)."""
 
 
@@ -128,8 +150,11 @@ def cross_table(first: str, confs: list[Configuration], kind: str, base: Column)
     return Table(["scenario", *ids], rows, SPREAD_NOTE.replace("best median in its column", "best median in its row"))
 
 
-VESSEL_COLUMNS = (("min clearance (m)", "min_clearance_m"), ("s within threshold", "time_below_threshold_s"),
-                  ("cross-track max (m)", "cross_track.max"))
+VESSEL_COLUMNS = (
+    ("min clearance (m)", "min_clearance_m"),
+    ("s within threshold", "time_below_threshold_s"),
+    ("cross-track max (m)", "cross_track.max"),
+)
 
 
 def vessel_table(confs: list[Configuration]) -> Table:
@@ -145,8 +170,10 @@ def vessel_table(confs: list[Configuration]) -> Table:
             spread = spread_of([document.get(path)(n) for n in nodes])
             cells.append(Cell(NULL if spread is None else document.metres(spread.median) + spread_text(spread, document.metres)))
         rows.append(cells)
-    note = ("Median over seeds (min–max). Clearance: the hull's distance to the nearest structure (0 after a collision); "
-            "time within the scenario's clearance threshold; cross-track: the true offset from the route.")
+    note = (
+        "Median over seeds (min–max). Clearance: the hull's distance to the nearest structure (0 after a collision); "
+        "time within the scenario's clearance threshold; cross-track: the true offset from the route."
+    )
     return Table(["scenario", "steered on", "collisions", *(title for title, _ in VESSEL_COLUMNS)], rows, note)
 
 
@@ -156,8 +183,13 @@ def conf_section(conf: Configuration, images: dict[str, str]) -> list:
     blocks: list = [Heading(2, conf.title)]
     if info.get("description"):
         blocks.append(Text(str(info["description"])))
-    blocks.append(Text(f"world {info.get('world', NULL)} · stretch {report.stretch_text(info.get('stretch') or {})} · "
-                       f"{plural(len(conf.runs), 'run')}, seeds {seeds_text([r.seed for r in conf.runs])}", "meta"))
+    blocks.append(
+        Text(
+            f"world {info.get('world', NULL)} · stretch {report.stretch_text(info.get('stretch') or {})} · "
+            f"{plural(len(conf.runs), 'run')}, seeds {seeds_text([r.seed for r in conf.runs])}",
+            "meta",
+        )
+    )
     blocks += [Text(s) for s in conf_sentences(conf)]
     blocks += estimator_tables(conf) + matcher_tables(conf) + roc_blocks(conf, images)
     return blocks
@@ -169,18 +201,30 @@ def estimator_tables(conf: Configuration) -> list:
     if not nodes:
         return []
     labels = {cid: cid for cid in nodes}
-    accuracy = document.ranked_table("estimator", nodes, [*(spread_column(c.title, c, _itself) for c in ACCURACY), FAILURE_COLUMN], labels,
-                                   "Horizontal errors in metres; RPE: mean error per 100 m of true travel; failure rate: share of runs in "
-                                   "which the estimator failed. " + SPREAD_NOTE)
+    accuracy = document.ranked_table(
+        "estimator",
+        nodes,
+        [*(spread_column(c.title, c, _itself) for c in ACCURACY), FAILURE_COLUMN],
+        labels,
+        "Horizontal errors in metres; RPE: mean error per 100 m of true travel; failure rate: share of runs in "
+        "which the estimator failed. " + SPREAD_NOTE,
+    )
     present = [c for c in [*WINDOWS, *SCORES] if any(n.get(c.title) for n in nodes.values())]
     blocks = [Heading(3, "Estimators"), accuracy]
     if present:
         columns = [spread_column(c.title, c, _itself) for c in present if c in WINDOWS] + [MONITOR]
         columns += [spread_column(c.title, c, _itself) for c in present if c in SCORES]
-        blocks.append(document.ranked_table("estimator", nodes, columns, labels,
-                                          "Worst horizontal error (m) inside any window of that kind (blackout: under bridges; NLOS: "
-                                          "reflected signals beside walls). Monitor: recall and false-alarm rate on measured fixes whose "
-                                          "environment-added error exceeds 5 m. " + SPREAD_NOTE))
+        blocks.append(
+            document.ranked_table(
+                "estimator",
+                nodes,
+                columns,
+                labels,
+                "Worst horizontal error (m) inside any window of that kind (blackout: under bridges; NLOS: "
+                "reflected signals beside walls). Monitor: recall and false-alarm rate on measured fixes whose "
+                "environment-added error exceeds 5 m. " + SPREAD_NOTE,
+            )
+        )
     return blocks
 
 
@@ -189,22 +233,29 @@ def matcher_tables(conf: Configuration) -> list:
     if not conf.matchers:
         return []
     columns = [*(spread_column(c.title, c, _itself) for c in MATCHER), FAILURE_COLUMN]
-    note = ("Success: share of scans with a usable match; degenerate: usable matches with an unobserved direction; errors (m) of the "
-            "odometry chained from the true start, APE aligned after the best-fit planar motion. " + SPREAD_NOTE)
+    note = (
+        "Success: share of scans with a usable match; degenerate: usable matches with an unobserved direction; errors (m) of the "
+        "odometry chained from the true start, APE aligned after the best-fit planar motion. " + SPREAD_NOTE
+    )
     return [Heading(3, "Scan matchers"), document.ranked_table("matcher", conf.matchers, columns, {cid: cid for cid in conf.matchers}, note)]
 
 
 def roc_blocks(conf: Configuration, images: dict[str, str]) -> list:
     """The ROC figure, or why there is none."""
     if conf.title in images:
-        caption = (f"Monitor ROC over the {conf.roc.measured} measured fixes of {plural(len(conf.runs), 'run')}, pooled: recall (share of the "
-                   f"{conf.roc.faulty} fixes with more than {FAULT_M:g} m added by the environment that are flagged) against false-alarm rate "
-                   f"(share of the others flagged), linear axes, each threshold of the monitor's statistic; dot: its actual verdicts, which can "
-                   f"lie off the curve (a combined monitor, a hold after an alarm, fixes refused before initialisation). "
-                   f"Right: false-alarm rates up to {ZOOM_FA:.0%}.")
+        caption = (
+            f"Monitor ROC over the {conf.roc.measured} measured fixes of {plural(len(conf.runs), 'run')}, pooled: recall (share of the "
+            f"{conf.roc.faulty} fixes with more than {FAULT_M:g} m added by the environment that are flagged) against false-alarm rate "
+            f"(share of the others flagged), linear axes, each threshold of the monitor's statistic; dot: its actual verdicts, which can "
+            f"lie off the curve (a combined monitor, a hold after an alarm, fixes refused before initialisation). "
+            f"Right: false-alarm rates up to {ZOOM_FA:.0%}."
+        )
         return [Heading(3, "Monitor ROC"), Image(images[conf.title], caption)]
-    why = (f"No measured fix had more than {FAULT_M:g} m added by the environment" if not conf.roc.faulty
-           else "No estimator here has a monitor with a statistic")
+    why = (
+        f"No measured fix had more than {FAULT_M:g} m added by the environment"
+        if not conf.roc.faulty
+        else "No estimator here has a monitor with a statistic"
+    )
     return [Heading(3, "Monitor ROC"), Text(f"{why}: no ROC curve.")]
 
 
@@ -241,10 +292,17 @@ def runs_section(confs: list[Configuration], out_dir: Path) -> list:
             outcomes = run.metrics.get("expectations") or []
             passed = sum(bool(o.get("pass")) for o in outcomes)
             broken = [cid for kind in ("estimators", "matchers") for cid in run.metrics.get(kind) or {} if failed(run, kind, cid)]
-            rows.append([Cell(conf.title, css="text"), Cell(NULL if run.seed is None else str(run.seed)), Cell(run.hash or NULL),
-                         Cell(_relative(run.path, out_dir), css="text"),
-                         Cell(f"{passed}/{len(outcomes)}", css=("pass" if passed == len(outcomes) else "fail") if outcomes else ""),
-                         Cell(", ".join(broken), css="fail" if broken else "")])
-    return [Heading(2, "Runs"), Table(["configuration", "seed", "hash", "path", "expectations passed", "failed"], rows,
-                                      "Paths relative to this report.")]
-
+            rows.append(
+                [
+                    Cell(conf.title, css="text"),
+                    Cell(NULL if run.seed is None else str(run.seed)),
+                    Cell(run.hash or NULL),
+                    Cell(_relative(run.path, out_dir), css="text"),
+                    Cell(f"{passed}/{len(outcomes)}", css=("pass" if passed == len(outcomes) else "fail") if outcomes else ""),
+                    Cell(", ".join(broken), css="fail" if broken else ""),
+                ]
+            )
+    return [
+        Heading(2, "Runs"),
+        Table(["configuration", "seed", "hash", "path", "expectations passed", "failed"], rows, "Paths relative to this report."),
+    ]

@@ -109,8 +109,9 @@ def configurations(runs: list[RunInfo]) -> list[Configuration]:
         flat = [flatten(configuration(rs[0].config)) for rs in members]
         differing = label_keys(flat)
         for i in sorted(range(len(members)), key=lambda i: tuple(_order(flat[i].get(k)) for k in differing)):
-            out.append(_configuration(scenario, label_text(flat[i], differing),
-                                      sorted(members[i], key=lambda r: (r.seed is None, r.seed or 0, str(r.path)))))
+            out.append(
+                _configuration(scenario, label_text(flat[i], differing), sorted(members[i], key=lambda r: (r.seed is None, r.seed or 0, str(r.path))))
+            )
     return out
 
 
@@ -152,8 +153,12 @@ def components(runs: list[RunInfo], kind: str, columns: list[Column], monitors: 
         good = [r.metrics[kind][cid] for r in present if not failed(r, kind, cid)]
         if monitors.get(cid, "none") == "none":  # no monitor: its scores mean nothing
             good = [{k: v for k, v in node.items() if k != "monitor"} for node in good]
-        out[cid] = {**{c.title: spread_of([c.value(node) for node in good]) for c in columns},
-                    "failures": len(present) - len(good), "runs": len(present), "monitor_kind": monitors.get(cid, "none")}
+        out[cid] = {
+            **{c.title: spread_of([c.value(node) for node in good]) for c in columns},
+            "failures": len(present) - len(good),
+            "runs": len(present),
+            "monitor_kind": monitors.get(cid, "none"),
+        }
     return out
 
 

@@ -46,8 +46,11 @@ def read_gps(run: RunInfo, eids: list[str]) -> dict[str, np.ndarray]:
     if "quality" not in table or "added_err_h" not in table:
         return {}
     n = len(table["quality"])
-    wanted = {"quality": table["quality"], "added_err_h": table["added_err_h"],
-              **{f"{e}.{k}": table.get(f"{e}.{k}", np.full(n, fill)) for e in eids for k, fill in (("trusted", 1.0), ("statistic", np.nan))}}
+    wanted = {
+        "quality": table["quality"],
+        "added_err_h": table["added_err_h"],
+        **{f"{e}.{k}": table.get(f"{e}.{k}", np.full(n, fill)) for e in eids for k, fill in (("trusted", 1.0), ("statistic", np.nan))},
+    }
     bad = [name for name, column in wanted.items() if column.dtype.kind != "f"]
     if bad:
         raise ValueError(f"{path}: column {bad[0]} holds something other than numbers")
@@ -88,14 +91,18 @@ def roc_figure(title: str, pooled: Roc, eids: list[str], n_runs: int) -> Figure:
     handles = []
     for curve in pooled.curves:
         fa, recall = curve.operating
-        label = f"{curve.eid} (monitor {curve.monitor}): its verdicts flag {document.share(recall)} of faulty fixes at {document.share(fa)} false alarms"
+        label = (
+            f"{curve.eid} (monitor {curve.monitor}): its verdicts flag {document.share(recall)} of faulty fixes at {document.share(fa)} false alarms"
+        )
         for ax in axes:
-            line, = ax.plot(curve.false_alarm, curve.recall, color=palette[curve.eid], lw=1.5, label=label)
+            (line,) = ax.plot(curve.false_alarm, curve.recall, color=palette[curve.eid], lw=1.5, label=label)
             ax.plot(fa, recall, marker="o", ms=8, color=palette[curve.eid], mec="black", mew=0.8, ls="none", zorder=5)
         handles.append(line)
     axes[0].plot([0, 1], [0, 1], color="grey", lw=0.8, ls=":")
-    handles += [Line2D([], [], marker="o", ls="none", mfc="white", mec="black", ms=8, label="dot: the operating point of its actual verdicts"),
-                Line2D([], [], color="grey", lw=0.8, ls=":", label="chance")]
+    handles += [
+        Line2D([], [], marker="o", ls="none", mfc="white", mec="black", ms=8, label="dot: the operating point of its actual verdicts"),
+        Line2D([], [], color="grey", lw=0.8, ls=":", label="chance"),
+    ]
     for ax, right, panel in zip(axes, (1.0, ZOOM_FA), ("whole range", f"false-alarm rates up to {ZOOM_FA:.0%}")):
         ax.set_xlim(0, right)
         ax.set_ylim(0, 1.02)
@@ -105,7 +112,8 @@ def roc_figure(title: str, pooled: Roc, eids: list[str], n_runs: int) -> Figure:
         ax.set_title(panel, fontsize=10)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("recall (faulty fixes flagged)")
-    figure.suptitle(textwrap.fill(f"{title}: {pooled.faulty} faulty of {pooled.measured} measured fixes over "
-                                  f"{plural(n_runs, 'run')}", 130), fontsize=11)
+    figure.suptitle(
+        textwrap.fill(f"{title}: {pooled.faulty} faulty of {pooled.measured} measured fixes over {plural(n_runs, 'run')}", 130), fontsize=11
+    )
     figure.legend(handles=handles, loc="outside lower center", ncol=1, fontsize=8)
     return figure

@@ -83,8 +83,14 @@ def read_run(path: Path) -> RunInfo:
             raise ValueError(f"{path / 'metrics.json'}: '{kind}' is not a table of components")
     run = metrics.get("run") if isinstance(metrics.get("run"), dict) else {}
     seed = run.get("seed", config.get("seed"))
-    return RunInfo(path, str(run.get("scenario") or config.get("name") or path.name), seed if isinstance(seed, int) else None,
-                   str(run.get("scenario_hash") or ""), config, metrics)
+    return RunInfo(
+        path,
+        str(run.get("scenario") or config.get("name") or path.name),
+        seed if isinstance(seed, int) else None,
+        str(run.get("scenario_hash") or ""),
+        config,
+        metrics,
+    )
 
 
 def _read(file: Path, parse: Callable[[str], object], what: str, kind: type):
@@ -94,7 +100,7 @@ def _read(file: Path, parse: Callable[[str], object], what: str, kind: type):
     except (OSError, UnicodeDecodeError, ValueError) as exc:  # JSONDecodeError and TOMLDecodeError are ValueErrors
         raise ValueError(f"{file}: unreadable {what} ({' '.join(str(exc).split())})") from None
     if not isinstance(tree, kind):
-        raise ValueError(f"{file}: not the expected {what} {'object' if kind is dict else 'list'}")  # noqa: TRY004 (bad input is a ValueError)
+        raise ValueError(f"{file}: not the expected {what} {'object' if kind is dict else 'list'}")
     return tree
 
 
@@ -105,12 +111,17 @@ def unfinished(listings: list[Path]) -> list[Unfinished]:
         if f.name == "results.parquet":
             from scenarios.batch import table as sweep_table
 
-            out += [Unfinished(f"{r['scenario']} (seed {r['seed']})", str(r.get("reason") or r["status"]), f)
-                    for r in sweep_table.read(f.parent) if r.get("status") != "ok"]
+            out += [
+                Unfinished(f"{r['scenario']} (seed {r['seed']})", str(r.get("reason") or r["status"]), f)
+                for r in sweep_table.read(f.parent)
+                if r.get("status") != "ok"
+            ]
         else:
-            out += [Unfinished(str(case.get("name", NULL)) + (f" (seed {case['seed']})" if case.get("seed") is not None else ""),
-                               str(case["error"]), f)
-                    for case in suite_cases(f) if isinstance(case, dict) and case.get("error")]
+            out += [
+                Unfinished(str(case.get("name", NULL)) + (f" (seed {case['seed']})" if case.get("seed") is not None else ""), str(case["error"]), f)
+                for case in suite_cases(f)
+                if isinstance(case, dict) and case.get("error")
+            ]
     return out
 
 

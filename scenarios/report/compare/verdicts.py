@@ -19,8 +19,7 @@ from scenarios.report.document import Column
 
 OPEN_WATER = "open_river"
 """The scenario whose results the summary calls open water."""
-VERDICTS = {"clear": "a clear difference", "within": "within the spread: no clear winner",
-            "unknown": "the spread is unknown (one seed)"}
+VERDICTS = {"clear": "a clear difference", "within": "within the spread: no clear winner", "unknown": "the spread is unknown (one seed)"}
 TALLY_WORDS = {"clear": "clear", "within": "within the spread", "unknown": "with one seed"}
 """How the tally of wins words each verdict: 'clear in 2, within the spread in 1'."""
 
@@ -89,8 +88,10 @@ def sentence(criterion: Criterion, d: Duel) -> str:
     v = verdict(d, criterion.column)
     if v == "tie":
         return f"{criterion.phrase}: {d.winner} and {d.runner_up} tie at {criterion.column.fmt(d.best.median)}{criterion.unit}."
-    return (f"{criterion.phrase}: {d.winner} {quote(d.best, criterion, True)} against {d.runner_up} "
-            f"{quote(d.second, criterion, d.second.n != d.best.n)}: {VERDICTS[v]}.")
+    return (
+        f"{criterion.phrase}: {d.winner} {quote(d.best, criterion, True)} against {d.runner_up} "
+        f"{quote(d.second, criterion, d.second.n != d.best.n)}: {VERDICTS[v]}."
+    )
 
 
 def conf_sentences(conf: Configuration) -> list[str]:
@@ -107,9 +108,12 @@ def tally(confs: list[Configuration], criterion: Criterion) -> str | None:
     for d in duels:
         wins.setdefault(d.winner if verdict(d, criterion.column) != "tie" else "", []).append(verdict(d, criterion.column))
     ties = len(wins.pop("", []))
-    parts = [f"{winner} in {len(codes)} of {plural(len(duels), 'configuration')} ("
-             + ", ".join(f"{word} in {codes.count(code)}" for code, word in TALLY_WORDS.items() if code in codes) + ")"
-             for winner, codes in sorted(wins.items(), key=lambda item: -len(item[1]))]
+    parts = [
+        f"{winner} in {len(codes)} of {plural(len(duels), 'configuration')} ("
+        + ", ".join(f"{word} in {codes.count(code)}" for code, word in TALLY_WORDS.items() if code in codes)
+        + ")"
+        for winner, codes in sorted(wins.items(), key=lambda item: -len(item[1]))
+    ]
     return f"{criterion.phrase}: " + "; ".join(parts + ([f"a tie in {ties}"] if ties else [])) + "."
 
 
@@ -119,7 +123,12 @@ def overall_sentences(confs: list[Configuration]) -> list[str]:
     for conf in (c for c in confs if c.scenario == OPEN_WATER):
         if d := duel(conf.estimators, APE_P95):
             out.append(sentence(replace(CRITERIA[0], phrase=f"Open water ({conf.title}), lowest APE p95"), d))
-    failures = [f"{cid} ({kind.removesuffix('s')}) in {node['failures']} of {plural(node['runs'], 'run')} of {conf.title}"
-                for conf in confs for kind in ("estimators", "matchers") for cid, node in getattr(conf, kind).items() if node["failures"]]
+    failures = [
+        f"{cid} ({kind.removesuffix('s')}) in {node['failures']} of {plural(node['runs'], 'run')} of {conf.title}"
+        for conf in confs
+        for kind in ("estimators", "matchers")
+        for cid, node in getattr(conf, kind).items()
+        if node["failures"]
+    ]
     out.append("Failed: " + "; ".join(failures) + "." if failures else "No estimator or matcher failed in any run.")
     return out

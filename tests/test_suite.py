@@ -147,6 +147,6 @@ def test_a_scenario_that_times_out_is_a_failure_and_leaves_nothing(tmp_path):
     runs = tmp_path / "runs"
     result = runner.invoke(app, ["suite", str(slow), "--workers", "1", "--timeout", "12", "--out", str(runs), "--quiet"])
     assert result.exit_code == 1
-    case = json.loads((runs / "suite.json").read_text())[0]
+    case = json.loads((runs / "suite.json").read_text())["cases"][0]
     assert case["error"] == "timed out after 12 s" and not case["passed"]
     assert sorted(p.name for p in runs.iterdir()) == ["suite.json"]  # the run's temporary directory went with it

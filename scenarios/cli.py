@@ -430,7 +430,7 @@ def sweep(
             )
     except KeyboardInterrupt:
         errors.print(
-            f"[bold yellow]stopped:[/] sweep interrupted; the finished runs are in {out}/results.parquet; the same command completes it",
+            f"[bold yellow]stopped:[/] sweep interrupted; the finished runs are in {out}/results.csv; the same command completes it",
             highlight=False,
             soft_wrap=True,
         )

@@ -395,3 +395,20 @@ def test_table_flattening_counts_lists_and_keeps_nulls():
         "expectations.passed": 2,
         "expectations.failed": 1,
     }
+
+
+def test_without_pyarrow_the_csv_is_the_table_and_reads_back_the_same_rows(local_sweep, tmp_path, monkeypatch):
+    from scenarios.batch import table
+
+    monkeypatch.setattr(table, "_pyarrow", lambda: None)
+    table.write(tmp_path, local_sweep.rows)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.csv"]
+    back = table.read(tmp_path)
+    assert len(back) == len(local_sweep.rows)
+    for r, b in zip(local_sweep.rows, back, strict=True):
+        assert b.keys() == r.keys()
+        for key, value in r.items():
+            if isinstance(value, float) and math.isnan(value):
+                assert math.isnan(b[key])
+            else:
+                assert b[key] == value, key

@@ -84,7 +84,9 @@ def summary(result: SweepResult, plan: SweepPlan, objective: str | None, minimiz
                 str(len(g.values)),
             )
         parts.append(best if ranked else Text(f"no finished run has a value of {objective}"))
-    parts.append(Text(f"table: {result.out_dir / 'results.parquet'} (and results.csv)"))
+    parts.append(
+        Text(f"table: {result.out_dir / 'results.csv'}" + (" (and results.parquet)" if (result.out_dir / "results.parquet").exists() else ""))
+    )
     if plots:
         parts.append(Text(f"plots: {', '.join(str(p) for p in plots)}"))
     return Group(*parts)

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from riverbench import provenance
 from riverbench.atomic import atomic_path
 from scenarios.batch.workers import raise_terminated, stop
 from scenarios.score.regression import Comparison, MetricVerdict
@@ -161,6 +162,7 @@ def write_summary(cases: list[CaseResult], path: Path, comparison: Comparison | 
     """suite.json: every case with its expectations (what `riverbench report` reads over a suite) and, against a
     baseline, the comparison (counts, both sides' provenance, every metric that moved)."""
     summary = {
+        "provenance": provenance.collect(),
         "cases": [{**asdict(c), "passed": c.passed} for c in cases],
         "baseline_comparison": comparison.as_dict() if comparison is not None else None,
     }

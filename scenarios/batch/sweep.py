@@ -1,6 +1,6 @@
 """`riverbench sweep` (scenarios.batch.sweep.run_sweep): run a SweepPlan on a local process pool or on Ray.
 
-A sweep directory holds sweep.json (the plan), results.parquet and results.csv (a row per run, see
+A sweep directory holds sweep.json (the plan), results.csv and, with pyarrow, results.parquet (a row per run, see
 scenarios.batch.table), runs/<scenario>-<hash>/ (each run's directory) and plots/. It is resumable:
 a point whose resolved-scenario hash is in the table, or whose run directory was finished before the
 table was written, is not run again; a failed run is a row with its reason and the sweep goes on.
@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from riverbench import provenance
 from riverbench.atomic import atomic_path
 from scenarios.batch import table
 from scenarios.batch.job import Job, JobOutcome, run_job
@@ -149,7 +150,7 @@ def check_out_dir(out_dir: Path) -> None:
 
 def write_plan(out_dir: Path, plan: SweepPlan) -> None:
     """sweep.json: the plan, so a reader knows what was swept (the table has every run's values)."""
-    data = asdict(plan)
+    data = {**asdict(plan), "provenance": provenance.collect()}
     with atomic_path(out_dir / PLAN_FILE) as tmp:
         tmp.write_text(json.dumps(data, indent=2, default=list) + "\n")
 

@@ -1,4 +1,5 @@
-"""A sweep's results table: one row per run, Parquet (typed, for pandas/polars/pyarrow) and CSV beside it.
+"""A sweep's results table: one row per run, CSV, and Parquet beside it (typed, for pandas/polars) when pyarrow is
+installed (`pip install 'riverbench[parquet]'`).
 
 Columns: the run's identity (scenario, scenario_hash, seed, status, reason, wall_s, run_dir,
 passed), each swept parameter as `param.<key>`, and every numeric metric of metrics.json
@@ -20,6 +21,8 @@ PARQUET = "results.parquet"
 CSV = "results.csv"
 IDENTITY = ("scenario", "scenario_hash", "seed", "status", "reason", "wall_s", "run_dir", "passed")
 PARAM_PREFIX = "param."
+TEXT = ("scenario", "scenario_hash", "status", "reason", "run_dir")
+"""Identity columns that are always text (a hash of digits only stays a string when read back from the CSV)."""
 
 
 def flatten(metrics: dict) -> dict:
@@ -61,16 +64,48 @@ def row(point, status: str, wall_s: float, run_dir: str, metrics: dict | None = 
 
 
 def read(directory: Path) -> list[dict]:
-    """The rows of a sweep directory's table ([] when there is none yet)."""
-    path = Path(directory) / PARQUET
-    if not path.exists():
-        return []
-    import pyarrow.parquet as pq
+    """The rows of a sweep directory's table ([] when there is none yet): from the Parquet file when there is one and
+    pyarrow is installed, else from the CSV (cells typed back: empty -> None, True/False, integers, floats, text)."""
+    parquet, text = Path(directory) / PARQUET, Path(directory) / CSV
+    if parquet.exists() and _pyarrow() is not None:
+        import pyarrow.parquet as pq
 
+        try:
+            return pq.read_table(parquet).to_pylist()
+        except Exception as exc:  # pyarrow raises several types for a damaged file
+            raise ValueError(f"{parquet}: cannot read the results table: {exc}") from None
+    if not text.exists():
+        return []
     try:
-        return pq.read_table(path).to_pylist()
-    except Exception as exc:  # pyarrow raises several types for a damaged file
-        raise ValueError(f"{path}: cannot read the results table: {exc}") from None
+        with open(text, newline="", encoding="utf-8") as handle:
+            return [{key: (cell or "") if key in TEXT else _typed(cell) for key, cell in r.items()} for r in csv.DictReader(handle)]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ValueError(f"{text}: cannot read the results table: {exc}") from None
+
+
+def _pyarrow():
+    """The pyarrow module, or None when the optional [parquet] extra is not installed."""
+    try:
+        import pyarrow
+    except ImportError:
+        return None
+    return pyarrow
+
+
+def _typed(cell: str | None):
+    """A CSV cell back as what _csv_cell wrote: None, a bool, an int, a float (repr round-trips exactly) or text."""
+    if cell is None or cell == "":
+        return None
+    if cell in ("True", "False"):
+        return cell == "True"
+    try:
+        return int(cell)
+    except ValueError:
+        pass
+    try:
+        return float(cell)
+    except ValueError:
+        return cell
 
 
 def columns(rows: Iterable[dict]) -> list[str]:
@@ -86,15 +121,16 @@ def columns(rows: Iterable[dict]) -> list[str]:
 
 
 def write(directory: Path, rows: list[dict]) -> None:
-    """results.parquet and results.csv of `rows`, each written atomically."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
+    """results.csv and (with pyarrow) results.parquet of `rows`, each written atomically."""
     names = columns(rows)
-    arrays = [_array(pa, [r.get(name) for r in rows]) for name in names]
-    table = pa.Table.from_arrays(arrays, names=names)
-    with atomic_path(Path(directory) / PARQUET) as tmp:
-        pq.write_table(table, tmp)
+    pa = _pyarrow()
+    if pa is not None:
+        import pyarrow.parquet as pq
+
+        arrays = [_array(pa, [r.get(name) for r in rows]) for name in names]
+        table = pa.Table.from_arrays(arrays, names=names)
+        with atomic_path(Path(directory) / PARQUET) as tmp:
+            pq.write_table(table, tmp)
     with atomic_path(Path(directory) / CSV) as tmp, open(tmp, "w", newline="") as handle:
         out = csv.writer(handle)
         out.writerow(names)

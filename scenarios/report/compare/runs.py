@@ -57,8 +57,8 @@ def find(sources: list[Path]) -> tuple[list[Path], list[Path]]:
                 dirs[:] = []  # a run directory holds no runs
             elif "suite.json" in files:
                 listings.append(Path(root) / "suite.json")
-            elif "results.parquet" in files and "sweep.json" in files:
-                listings.append(Path(root) / "results.parquet")
+            elif "sweep.json" in files and ("results.parquet" in files or "results.csv" in files):
+                listings.append(Path(root) / ("results.parquet" if "results.parquet" in files else "results.csv"))
         if not found:
             raise ValueError(f"{source}: no run directory (one with metrics.json and scenario.toml) in it or below it")
         run_dirs += found
@@ -108,7 +108,7 @@ def unfinished(listings: list[Path]) -> list[Unfinished]:
     """The suite cases and sweep runs that failed (they left no run directory to compare)."""
     out = []
     for f in listings:
-        if f.name == "results.parquet":
+        if f.name in ("results.parquet", "results.csv"):
             from scenarios.batch import table as sweep_table
 
             out += [

@@ -78,8 +78,8 @@ def spread_table(base: Baseline, top: int = 12) -> str:
             if family.better == "none" or family.wall_clock:
                 continue
             v = np.asarray([x for x in runs.values(metric, runs.seeds) if math.isfinite(x)])
-            if len(v) < 3 or np.median(np.abs(v)) < 1e-9:
-                continue
+            if len(v) < 3 or abs(float(np.median(v))) <= max(family.abs_tol, 1e-9) or (v.min() < 0 < v.max()):
+                continue  # a relative spread means nothing around zero (an error added in a window, positive or negative)
             rel = 1.4826 * float(np.median(np.abs(v - np.median(v)))) / abs(float(np.median(v)))
             by_family.setdefault(family.name, []).append(rel)
             rows.append((rel, name, metric, v))

@@ -18,8 +18,9 @@ import sys
 from pathlib import Path
 
 import scenarios
-from scenarios.report.results import EXPECTATION, derived_bound, median_range
+from scenarios.report.results import derived_bound, median_range
 from scenarios.score import baseline as baselines
+from scenarios.score.expectations import Expectation
 from scenarios.spec.library import LIBRARY as library_dir
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -33,10 +34,10 @@ def rewrite(text: str, runs, fast_lists: bool, source: str) -> tuple[str, list[s
     section, inside, changes, lists = "", False, [], []
     for i, line in enumerate(lines):
         stripped = line.strip()
-        if stripped.startswith("[") and not stripped.startswith("[[") or stripped.startswith("[["):
+        if stripped.startswith("["):  # a table or an array of tables: [fast], [stretch], [[traffic.movers]]
             section = stripped.strip("[]")
         target = (section == "fast") if fast_lists else (section == "")
-        if re.match(r"^(stretch = .*\n)?expect = \[", stripped) or stripped.startswith("expect = ["):
+        if stripped.startswith("expect = ["):
             inside = target
             if target:
                 lists.append(i)
@@ -45,8 +46,9 @@ def rewrite(text: str, runs, fast_lists: bool, source: str) -> tuple[str, list[s
             inside = False
             continue
         m = ITEM.match(line)
-        if inside and m and (e := EXPECTATION.match(m.group(2))):
-            metric, op, old = e.groups()
+        if inside and m:  # an item with a comment after it was bounded by hand and is left alone
+            parsed = Expectation.parse(m.group(2))
+            metric, op = parsed.path, parsed.op
             values = runs.values(metric, runs.seeds)
             bound = derived_bound(values, op, metric)
             if math.isnan(bound):

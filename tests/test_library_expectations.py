@@ -3,17 +3,16 @@ every seed's value passes its expectation, and no bound is looser than what the 
 (scenarios.report.results.derived_bound). Widening a bound without a baseline that shows why fails here."""
 
 import math
-import operator
 from pathlib import Path
 
 import pytest
 
 import scenarios
-from scenarios.report.results import EXPECTATION, derived_bound
+from scenarios.report.results import derived_bound
 from scenarios.score import baseline as baselines
+from scenarios.score.expectations import OPERATORS, Expectation
 
 BASELINES = sorted((Path(__file__).resolve().parent.parent / "benchmarks" / "baseline").glob("*.json"))
-OPS = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge, "==": operator.eq, "!=": operator.ne}
 
 
 def _cases():
@@ -27,11 +26,11 @@ def _cases():
 
 @pytest.mark.parametrize("baseline_name, runs, expect", list(_cases()))
 def test_expectation_holds_on_every_baseline_seed_and_is_as_tight_as_the_spread_allows(baseline_name, runs, expect):
-    metric, op, raw = EXPECTATION.match(expect).groups()
-    bound = float(raw)
+    parsed = Expectation.parse(expect)
+    metric, op, bound = parsed.path, parsed.op, parsed.value
     values = runs.values(metric, runs.seeds)
     assert all(math.isfinite(v) for v in values), f"{metric} not measured on every seed of {baseline_name}: {values}"
-    failing = [(s, v) for s, v in zip(runs.seeds, values) if not OPS[op](v, bound)]
+    failing = [(s, v) for s, v in zip(runs.seeds, values) if not OPERATORS[op](v, bound)]
     assert not failing, f"{expect} fails on seeds {failing} of {baseline_name}: the bound is tighter than the scenario's spread"
     derived = derived_bound(values, op, metric)
     if math.isnan(derived):  # every seed gave the same value of a metric without a tolerance: only that it passes is checked

@@ -193,6 +193,12 @@ def judge(scenario: str, metric: str, seeds: list[int], base: list[float], now: 
     return MetricVerdict(scenario, metric, family, list(seeds), list(b), list(n), verdict, identical, threshold, change)
 
 
+def seed_sigma(values: np.ndarray) -> float:
+    """The seeds' spread as a robust standard deviation: 1.4826 x the median absolute deviation from the median."""
+    values = np.asarray(values, dtype=float)
+    return 1.4826 * float(np.median(np.abs(values - np.median(values))))
+
+
 def _threshold(family: Family, base: np.ndarray) -> float:
     """max(abs_tol, rel_tol x |median|, NOISE_K x seeds' sigma / sqrt(n)); 0/1 outcomes: any change."""
     if not len(base) or family.any_seed:
@@ -200,8 +206,7 @@ def _threshold(family: Family, base: np.ndarray) -> float:
     median = float(np.median(base))
     noise = 0.0
     if len(base) > 1 and not family.wall_clock:
-        sigma = 1.4826 * float(np.median(np.abs(base - median)))
-        noise = NOISE_K * sigma / math.sqrt(len(base))
+        noise = NOISE_K * seed_sigma(base) / math.sqrt(len(base))
     return max(family.abs_tol, family.rel_tol * abs(median), noise)
 
 

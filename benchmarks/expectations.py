@@ -92,4 +92,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except ValueError as exc:  # a missing, corrupt or foreign baseline file: one line naming it
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)

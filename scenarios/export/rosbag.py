@@ -3,23 +3,35 @@
     <out>/metadata.yaml                 rosbag2 metadata, version 8 (Iron's; QoS profiles as YAML strings, as Humble writes them)
     <out>/<scenario>_0.db3 | .mcap      the messages, named as `ros2 bag record` names a bag's first file
 
-Topics, named as the ROS drivers publish them (messages detailed in ros_messages.py):
-    /velodyne_points     sensor_msgs/PointCloud2, one per revolution (velodyne_pointcloud's transform node)
-    /gps/fix             sensor_msgs/NavSatFix, one per fix (nmea_navsat_driver, ublox, septentrio drivers)
-    /nmea_sentence       nmea_msgs/Sentence, each NMEA sentence of each fix (nmea_navsat_driver)
-    /tf_static           tf2_msgs/TFMessage, once at the stream's start: base_link -> velodyne (the lidar mount)
-                         and base_link -> gps (the antenna offset); offered QoS transient_local (latched)
-    /tf                  tf2_msgs/TFMessage, map -> base_link ground truth at each scan's stamp
-    /odom/ground_truth   nav_msgs/Odometry, the same pose
+Topics (messages detailed in ros_messages.py, the drivers' conventions in dialect.py):
+    /velodyne_points        sensor_msgs/PointCloud2, one per revolution, frame velodyne (velodyne_pointcloud's transform node)
+    /gps/fix                sensor_msgs/NavSatFix, one per fix, frame gps (nmea_navsat_driver; the topic
+                            robot_localization's navsat_transform_node subscribes to)
+    /nmea_sentence          nmea_msgs/Sentence, each NMEA sentence of each fix (nmea_navsat_driver's nmea_topic_driver input)
+    /gps/extended_fix       gps_msgs/GPSFix, one per fix, frame gps (gpsd_client): the DOPs and satellites NavSatFix lacks
+    /tf_static              tf2_msgs/TFMessage, once at the stream's start: the boat's sensor mounts, base_link -> velodyne
+                            (the lidar mount) and base_link -> gps (the antenna offset); offered QoS transient_local (latched)
+    /ground_truth/odom      nav_msgs/Odometry map -> base_link, the true pose at each scan's stamp, covariance zero (exact)
+    /ground_truth/tf        tf2_msgs/TFMessage map -> base_link, the same pose, for viewers only: Foxglove takes transforms
+                            from every TFMessage topic, ROS tf2 listens on /tf and /tf_static only
+    /riverbench/<id>/odom   nav_msgs/Odometry map -> base_link, estimator <id>'s pose at each scan once it is initialised,
+                            with its covariance (x, y, yaw; the rest zero: not estimated)
+Nothing is published on /tf: a localization stack run on the bag publishes map -> odom -> base_link
+there itself (REP-105), and a second parent of base_link would break its tree.
 Every message is recorded at its header stamp. The bag is written frame by frame and each frame's
 messages are on disk before the next frame is read (the sqlite3 transaction is committed, the MCAP
 chunk closed: a chunk per revolution), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
-or `kiss_icp_pipeline <out>`.
+`kiss_icp_pipeline <out>`, evo (`evo_traj bag2 <out> /ground_truth/odom /riverbench/ekf/odom`), or
+Foxglove with docs/foxglove/riverbench_layout.json.
+
+A new sensor (an IMU) adds its topic to `topics`, its messages to `frame_messages` and its mount
+to `mounts`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
 
@@ -32,6 +44,13 @@ from scenarios.export import ros_messages as msgs
 from scenarios.export.frames import Frame, StreamInfo
 
 INFINITE = QosTime(9223372036, 854775807)  # RMW_DURATION_INFINITE, as Humble and later record it
+CLOUD_TOPIC = "/velodyne_points"
+FIX_TOPIC = "/gps/fix"
+NMEA_TOPIC = "/nmea_sentence"
+EXTENDED_FIX_TOPIC = "/gps/extended_fix"
+STATIC_TF_TOPIC = "/tf_static"
+TRUTH_TOPIC = "/ground_truth/odom"
+TRUTH_TF_TOPIC = "/ground_truth/tf"
 
 
 def offered(durability: QosDurability) -> list[Qos]:
@@ -39,14 +58,33 @@ def offered(durability: QosDurability) -> list[Qos]:
     return [Qos(QosHistory.UNKNOWN, 0, QosReliability.RELIABLE, durability, INFINITE, INFINITE, QosLiveliness.AUTOMATIC, INFINITE, False)]
 
 
-TOPICS = {
-    "/velodyne_points": ("sensor_msgs/msg/PointCloud2", offered(QosDurability.VOLATILE)),
-    "/gps/fix": ("sensor_msgs/msg/NavSatFix", offered(QosDurability.VOLATILE)),
-    "/nmea_sentence": ("nmea_msgs/msg/Sentence", offered(QosDurability.VOLATILE)),
-    "/tf_static": ("tf2_msgs/msg/TFMessage", offered(QosDurability.TRANSIENT_LOCAL)),
-    "/tf": ("tf2_msgs/msg/TFMessage", offered(QosDurability.VOLATILE)),
-    "/odom/ground_truth": ("nav_msgs/msg/Odometry", offered(QosDurability.VOLATILE)),
-}
+@dataclass(frozen=True)
+class Topic:
+    """A topic of the bag: its name, message type and the QoS its publisher offers."""
+
+    name: str
+    msgtype: str
+    qos: list[Qos]
+
+
+def estimate_topic(estimator_id: str) -> str:
+    """The Odometry topic of an estimator's output (estimator ids are valid ROS name tokens: scenarios.spec ID_PATTERN)."""
+    return f"/riverbench/{estimator_id}/odom"
+
+
+def topics(info: StreamInfo) -> list[Topic]:
+    """Every topic of the stream's bag, the estimators' last."""
+    volatile = offered(QosDurability.VOLATILE)
+    return [
+        Topic(CLOUD_TOPIC, "sensor_msgs/msg/PointCloud2", volatile),
+        Topic(FIX_TOPIC, "sensor_msgs/msg/NavSatFix", volatile),
+        Topic(NMEA_TOPIC, "nmea_msgs/msg/Sentence", volatile),
+        Topic(EXTENDED_FIX_TOPIC, "gps_msgs/msg/GPSFix", volatile),
+        Topic(STATIC_TF_TOPIC, "tf2_msgs/msg/TFMessage", offered(QosDurability.TRANSIENT_LOCAL)),
+        Topic(TRUTH_TOPIC, "nav_msgs/msg/Odometry", volatile),
+        Topic(TRUTH_TF_TOPIC, "tf2_msgs/msg/TFMessage", volatile),
+        *(Topic(estimate_topic(eid), "nav_msgs/msg/Odometry", volatile) for eid in info.estimators),
+    ]
 
 
 def write_sqlite3(info: StreamInfo, frames: Iterable[Frame], out: Path) -> dict[str, int]:
@@ -67,15 +105,13 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
     counts = {"messages": 0, "points": 0, "fixes": 0}
     with Writer(bag, version=8, storage_plugin=storage) as writer:
         flush = streaming(writer, storage)
-        connections = {
-            topic: writer.add_connection(topic, msgtype, typestore=store, offered_qos_profiles=qos) for topic, (msgtype, qos) in TOPICS.items()
-        }
+        connections = {t.name: writer.add_connection(t.name, t.msgtype, typestore=store, offered_qos_profiles=t.qos) for t in topics(info)}
         for batch in chain([static_messages(store, info)], (frame_messages(store, info, frame) for frame in frames)):
             for topic, ns, msg in batch:
                 writer.write(connections[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
                 counts["messages"] += 1
-                counts["points"] += msg.width if topic == "/velodyne_points" else 0
-                counts["fixes"] += topic == "/gps/fix"
+                counts["points"] += msg.width if topic == CLOUD_TOPIC else 0
+                counts["fixes"] += topic == FIX_TOPIC
             flush()
     for path in bag.iterdir():
         path.rename(out / path.name)
@@ -83,38 +119,39 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
     return counts
 
 
-def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, object]]:
-    """/tf_static at the stream's start: base_link -> velodyne (the mount) and base_link -> gps (the antenna offset)."""
-    ns = msgs.ros_ns(info.epoch_utc, info.t_start)
+def mounts(info: StreamInfo) -> list[tuple[str, np.ndarray]]:
+    """The boat's fixed sensor frames, (child frame, 4x4 pose base_link<-child): the lidar mount and the antenna offset."""
     antenna = np.eye(4)
     antenna[:3, 3] = info.antenna_offset_m
-    return [
-        (
-            "/tf_static",
-            ns,
-            msgs.tf_message(
-                store,
-                [
-                    msgs.transform(store, ns, msgs.BASE_FRAME, msgs.LIDAR_FRAME, info.mount),
-                    msgs.transform(store, ns, msgs.BASE_FRAME, msgs.GPS_FRAME, antenna),
-                ],
-            ),
-        )
-    ]
+    return [(msgs.LIDAR_FRAME, info.mount), (msgs.GPS_FRAME, antenna)]
+
+
+def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, object]]:
+    """/tf_static at the stream's start: base_link -> each mount."""
+    ns = msgs.ros_ns(info.epoch_utc, info.t_start)
+    transforms = [msgs.transform(store, ns, msgs.BASE_FRAME, child, pose) for child, pose in mounts(info)]
+    return [(STATIC_TF_TOPIC, ns, msgs.tf_message(store, transforms))]
 
 
 def frame_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
-    """The frame's messages in time order: its cloud and true pose at the scan's stamp, each fix and its sentences at theirs."""
+    """The frame's messages in time order: its cloud, true pose and estimates at the scan's stamp, each fix and its
+    sentences at theirs."""
     ns = msgs.ros_ns(info.epoch_utc, frame.stamp)
+    truth = msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)
     scan = [
-        ("/velodyne_points", ns, msgs.point_cloud(store, ns, frame.scan)),
-        ("/tf", ns, msgs.tf_message(store, [msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)])),
-        ("/odom/ground_truth", ns, msgs.odometry(store, ns, frame.base_pose)),
+        (CLOUD_TOPIC, ns, msgs.point_cloud(store, ns, frame.scan)),
+        (TRUTH_TOPIC, ns, msgs.odometry(store, ns, frame.base_pose, msgs.BASE_FRAME)),
+        (TRUTH_TF_TOPIC, ns, msgs.tf_message(store, [truth])),
+        *((estimate_topic(eid), ns, msgs.odometry(store, ns, e.pose, msgs.BASE_FRAME, e.cov)) for eid, e in frame.estimates.items()),
     ]
     gnss = []
     for fix in frame.fixes:
         t = msgs.ros_ns(info.epoch_utc, fix.stamp)
-        gnss += [("/gps/fix", t, msgs.nav_sat_fix(store, t, fix)), *(("/nmea_sentence", t, s) for s in msgs.sentences(store, t, fix))]
+        gnss += [
+            (FIX_TOPIC, t, msgs.nav_sat_fix(store, t, fix)),
+            (EXTENDED_FIX_TOPIC, t, msgs.gps_fix(store, t, fix)),
+            *((NMEA_TOPIC, t, s) for s in msgs.sentences(store, t, fix)),
+        ]
     return sorted(scan + gnss, key=lambda message: message[1])
 
 

@@ -27,6 +27,8 @@ from scenarios.spec.scenario import Scenario
 
 LOOKAHEAD_SCANS = 1
 """Scans read or simulated ahead of the one being matched (the overlap of reading or simulation and matching)."""
+PLANAR_AXES = [0, 1, 5]
+"""Rows and columns of x, y and yaw in a 6x6 pose covariance [x, y, z, roll, pitch, yaw] (ROS geometry_msgs order)."""
 
 
 @dataclass(frozen=True)
@@ -57,10 +59,12 @@ class Feed:
         base_pose: Callable[[float], np.ndarray],
         t_start: float,
         log_fix: Callable[[object], None] | None = None,
+        on_scan: Callable[[float], None] | None = None,
     ) -> None:
-        """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log)."""
+        """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
+        on_scan(stamp) once every estimator has a scan and before any later input (e.g. to read their poses and covariances)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
-        self.log_fix = log_fix
+        self.log_fix, self.on_scan = log_fix, on_scan
         self.feeds = {e.id: e.matcher for e in scenario.estimators}
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
@@ -75,6 +79,20 @@ class Feed:
             return checked_pose(self.estimators[estimator_id].pose)
         except Exception:  # a plugin's pose may raise anything: steering sees an unknown pose, the scan step records the failure
             return nan_pose()
+
+    def cov_of(self, estimator_id: str) -> np.ndarray | None:
+        """An estimator's current covariance as 6x6 [x, y, z, roll, pitch, yaw]: its 3x3 (x, y, yaw) in those rows and
+        columns, the rest zero (not estimated); None when it failed or gives no finite 3x3 or 6x6."""
+        if estimator_id in self.dead:
+            return None
+        try:
+            cov = np.asarray(self.estimators[estimator_id].cov, dtype=float)
+        except Exception:  # a plugin's cov may raise anything or be anything: no covariance
+            return None
+        if cov.shape == (3, 3):
+            cov, planar = np.zeros((6, 6)), cov
+            cov[np.ix_(PLANAR_AXES, PLANAR_AXES)] = planar
+        return cov if cov.shape == (6, 6) and np.isfinite(cov).all() else None
 
     def push(self, event) -> None:
         """Take the next event (ScanEvent, BadScan, or a fix event with `.fix`) and process what is due."""
@@ -142,6 +160,8 @@ class Feed:
 
         poses = self._each_estimator(step, event.stamp)
         self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
+        if self.on_scan is not None:
+            self.on_scan(event.stamp)
 
     def _fix(self, event) -> None:
         """One fix to every estimator, its verdicts into the record, then to log_fix."""

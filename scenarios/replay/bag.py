@@ -4,9 +4,10 @@ Topics are picked as KISS-ICP's rosbag dataloader picks its cloud: the only
 sensor_msgs/msg/PointCloud2 topic, or the one `lidar_topic` names (several and none named: a
 one-line error listing them). The GPS: the only nmea_msgs/msg/Sentence topic (the receiver's own
 sentences, with its satellites, C/N0 and dead-reckoning quality), else the only
-sensor_msgs/msg/NavSatFix topic, or the one `gps_topic` names (either type). Every event is stamped
-with its message's header stamp (see scenarios.replay.recording for the time base and the ordering;
-scenarios.replay.clouds and .fixes for the fields).
+sensor_msgs/msg/NavSatFix topic, or the one `gps_topic` names (either type). With NMEA, the only
+NavSatFix topic and the only gps_msgs/msg/GPSFix topic, if any, refine its epochs (scenarios.replay.fixes).
+Every event is stamped with its message's header stamp (see scenarios.replay.recording for the time
+base and the ordering; scenarios.replay.clouds and .fixes for the fields).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, Place, Recorde
 CLOUD = "sensor_msgs/msg/PointCloud2"
 SENTENCE = "nmea_msgs/msg/Sentence"
 NAVSAT = "sensor_msgs/msg/NavSatFix"
+GPSFIX = "gps_msgs/msg/GPSFix"
 
 
 def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_topic: str | None = None) -> Recording:
@@ -36,14 +38,13 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
         types = {topic: info.msgtype for topic, info in reader.topics.items()}
         lidar = pick(path, types, (CLOUD,), lidar_topic, "--lidar-topic")
         gps = pick(path, types, (SENTENCE,), gps_topic, "--gps-topic", fallback=(NAVSAT,))
-        navsat = [t for t, kind in types.items() if kind == NAVSAT]
-        refine = navsat[0] if types[gps] == SENTENCE and len(navsat) == 1 else None
+        refine = tuple(t for t in (sole(types, NAVSAT), sole(types, GPSFIX)) if t) if types[gps] == SENTENCE else ()
         if not reader.topics[lidar].msgcount:
             raise ValueError(f"{path}: topic {lidar} holds no point cloud")
         geo = Geo.choose(place, reader.start_time, first_position(reader, gps, place))
         span = (geo.seconds(reader.start_time), geo.seconds(reader.end_time))
         kind = "rosbag2" if reader.is2 else "ROS 1 bag"
-    source = gps + (f" (positions and DOPs refined by {refine})" if refine else "")
+    source = gps + (f" (positions and DOPs refined by {' and '.join(refine)})" if refine else "")
     return Recording(path, kind, lidar, source, geo, *span, events=lambda: events(path, lidar, gps, refine, geo))
 
 
@@ -82,6 +83,12 @@ def pick(path: Path, types: dict[str, str], wanted: tuple[str, ...], named: str 
     raise ValueError(f"{path}: no {' or '.join(k.rsplit('/', 1)[-1] for k in kinds)} topic")
 
 
+def sole(types: dict[str, str], kind: str) -> str | None:
+    """The bag's only topic of message type `kind` (None when it has none or several)."""
+    found = [t for t, k in types.items() if k == kind]
+    return found[0] if len(found) == 1 else None
+
+
 def first_position(reader: AnyReader, gps: str, place: Place) -> tuple[float, float, float] | None:
     """(lat, lon, alt) of the first message on the GPS topic with a position (None if there is none)."""
     probe = Geo.choose(place, 0, None)
@@ -99,18 +106,19 @@ def header_ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
-def events(path: Path, lidar: str, gps: str, refine: str | None, geo: Geo) -> Iterator[Event]:
+def events(path: Path, lidar: str, gps: str, refine: tuple[str, ...], geo: Geo) -> Iterator[Event]:
     """Scans, fixes and unreadable scans in time order, read lazily."""
-    order, epochs, precise = TimeOrder(), fixes.Epochs(), {}
+    order, epochs = TimeOrder(), fixes.Epochs()
+    precise: dict[int, dict[str, object]] = {}  # header stamp -> message type -> the refining message
     with opened(path) as reader:
-        connections = [c for c in reader.connections if c.topic in (lidar, gps, refine)]
+        connections = [c for c in reader.connections if c.topic in (lidar, gps, *refine)]
         for connection, log_ns, raw in reader.messages(connections=connections):
             if connection.topic == lidar:
                 order.add(scan_event(reader, connection.msgtype, raw, lidar, geo.seconds(log_ns), geo))
                 continue
             msg = reader.deserialize(raw, connection.msgtype)
-            if connection.topic == refine:
-                precise[header_ns(msg)] = msg
+            if connection.topic in refine:
+                precise.setdefault(header_ns(msg), {})[connection.msgtype] = msg
             elif connection.msgtype == SENTENCE:
                 add_epoch(order, epochs.add(header_ns(msg), msg.sentence), precise, geo)
             else:
@@ -136,15 +144,15 @@ def scan_event(reader: AnyReader, msgtype: str, raw: bytes, topic: str, logged: 
         return BadScan(stamp, topic, str(exc))
 
 
-def add_epoch(order: TimeOrder, epoch: tuple[list[int], list[str]] | None, precise: dict[int, object], geo: Geo) -> None:
-    """Queue a closed NMEA epoch's fix, refined by the NavSatFix stamped like one of its sentences (older ones dropped)."""
+def add_epoch(order: TimeOrder, epoch: tuple[list[int], list[str]] | None, precise: dict[int, dict[str, object]], geo: Geo) -> None:
+    """Queue a closed NMEA epoch's fix, refined by the NavSatFix and GPSFix stamped like one of its sentences (older ones dropped)."""
     if epoch is None:
         return
     stamps, lines = epoch
     stamp = geo.seconds(stamps[0])
     fix = fixes.from_nmea(stamp, lines, geo)
-    match = next((precise[ns] for ns in stamps if ns in precise), None)
+    match = next((precise[ns] for ns in stamps if ns in precise), {})
     for ns in [ns for ns in precise if ns <= stamps[-1]]:
         del precise[ns]
     if fix is not None:
-        order.add(RecordedFix(stamp, fix if match is None else fixes.refined(fix, match, geo), tuple(lines)))
+        order.add(RecordedFix(stamp, fixes.refined(fix, match.get(NAVSAT), match.get(GPSFIX), geo), tuple(lines)))

@@ -8,14 +8,17 @@ quality, enu, hdop, vdop and the satellites' prn, elevation, C/N0 and use), with
   types or with a bad checksum stay in the log and are not read. An epoch is the run of sentences
   from one GGA/RMC time to the next.
 - NavSatFix: latitude, longitude, altitude; status NO_FIX -> 0, FIX -> 1, SBAS -> 2, GBAS -> 4;
-  HDOP = sqrt(var_east + var_north) / UERE and VDOP = sqrt(var_up) / UERE from a known covariance,
-  UERE the 4 m of riverbench's export (exact for its bags; other drivers' conventions give an
-  equivalent HDOP). No satellites, so the C/N0 monitor cannot judge, and no dead reckoning (6).
+  HDOP from a known covariance by nmea_navsat_driver's convention, sqrt((var_east + var_north) / 2)
+  / EPE of the status (scenarios.export.dialect.hdop_of_navsat: exact for that driver's and
+  riverbench's bags; other drivers' conventions give an equivalent HDOP); no VDOP (the convention
+  carries none). No satellites, so the C/N0 monitor cannot judge, and no dead reckoning (6).
 - Both (a bag with NMEA and one NavSatFix topic, as riverbench's export and nmea_navsat_driver
   record them): the NMEA epoch's fix, with the position of the NavSatFix stamped like one of its
   sentences in float64 (NMEA prints 5 decimals of minutes, ~1 cm) when it lies within REFINE_M,
-  and that NavSatFix's DOPs when its HDOP prints as the NMEA one (another covariance convention is
-  left alone). The satellites' C/N0 (1 dB-Hz) and elevation (1 deg) stay NMEA's integers.
+  and that NavSatFix's HDOP when it prints as the NMEA one (another covariance convention is left
+  alone). A gps_msgs/GPSFix stamped like the epoch (gpsd_client's, riverbench's export) gives its
+  float64 HDOP, VDOP and PDOP when its HDOP and VDOP print as NMEA's; else VDOP and PDOP stay GSA's.
+  The satellites' C/N0 (1 dB-Hz) and elevation (1 deg) stay NMEA's integers.
 - An epoch that reports no DOP at all (GPRMC alone, as a Velodyne's position packets carry it, or a
   NavSatFix of unknown covariance) gets HDOP NOMINAL_HDOP, an open-sky receiver's: the estimators
   weigh it as such (uere_m * 1.0 / sqrt(2) per axis), the hdop monitor always trusts it and the
@@ -31,7 +34,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from scenarios.export.ros_messages import UERE_M
+from scenarios.export import dialect
 from scenarios.replay.recording import Geo
 from sim import nmea
 from sim.gnss_fix import GnssFix, SatelliteReport
@@ -141,23 +144,26 @@ def from_navsatfix(stamp: float, msg, geo: Geo) -> GnssFix:
 
 
 def navsat_dops(msg) -> tuple[float, float]:
-    """(HDOP, VDOP) from a NavSatFix's covariance; (NOMINAL_HDOP, NaN) when it is unknown."""
-    cov = np.asarray(msg.position_covariance, dtype=float).reshape(3, 3)
-    if int(msg.position_covariance_type) <= 0 or cov[0, 0] + cov[1, 1] <= 0:
-        return NOMINAL_HDOP, math.nan
-    return math.sqrt(cov[0, 0] + cov[1, 1]) / UERE_M, math.sqrt(cov[2, 2]) / UERE_M if cov[2, 2] > 0 else math.nan
+    """(HDOP, VDOP) of a NavSatFix: HDOP from its covariance (module docstring; NOMINAL_HDOP when unknown), VDOP NaN."""
+    hdop = dialect.hdop_of_navsat(msg.status.status, msg.position_covariance_type, msg.position_covariance)
+    return NOMINAL_HDOP if hdop is None else hdop, math.nan
 
 
-def refined(fix: GnssFix, msg, geo: Geo) -> GnssFix:
-    """The NMEA fix with the float64 position and the DOPs of a NavSatFix of its epoch, when they agree (module docstring)."""
-    lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
-    enu = geo.enu(lat, lon, alt)
-    if not fix.quality or not np.isfinite(enu).all() or np.linalg.norm(enu[:2] - fix.enu[:2]) > REFINE_M:
+def refined(fix: GnssFix, navsat, extended, geo: Geo) -> GnssFix:
+    """The NMEA fix with the float64 position and HDOP of a NavSatFix of its epoch and the float64 DOPs of a GPSFix
+    of its epoch (either may be None), each when it agrees with NMEA (module docstring)."""
+    if not fix.quality:
         return fix
-    hdop, vdop = navsat_dops(msg)
-    if f"{hdop:.2f}" != f"{fix.hdop:.2f}":
-        hdop, vdop = fix.hdop, fix.vdop
-    return dataclasses.replace(fix, lat=lat, lon=lon, alt=alt, enu=enu, hdop=hdop, vdop=vdop)
+    out = fix
+    if navsat is not None:
+        lat, lon, alt = float(navsat.latitude), float(navsat.longitude), float(navsat.altitude)
+        enu = geo.enu(lat, lon, alt)
+        if np.isfinite(enu).all() and np.linalg.norm(enu[:2] - fix.enu[:2]) <= REFINE_M:
+            hdop = navsat_dops(navsat)[0]
+            out = dataclasses.replace(out, lat=lat, lon=lon, alt=alt, enu=enu, hdop=hdop if f"{hdop:.2f}" == f"{fix.hdop:.2f}" else fix.hdop)
+    if extended is not None and all(f"{float(getattr(extended, k)):.2f}" == f"{getattr(fix, k):.2f}" for k in ("hdop", "vdop")):
+        out = dataclasses.replace(out, hdop=float(extended.hdop), vdop=float(extended.vdop), pdop=float(extended.pdop))
+    return out
 
 
 def fix(

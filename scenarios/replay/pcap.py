@@ -21,15 +21,13 @@ import dpkt
 import numpy as np
 import velodyne_decoder as vd
 
+from scenarios.export import dialect
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import fixes
 from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, Place, RecordedFix, Recording, TimeOrder, unix_ns
 from sim import nmea
-from sim.lidar import HDL32E_ELEVATION_DEG
 from sim.scan import POINT_DTYPE, Scan
 
-LASER_OF_RING = np.argsort(HDL32E_ELEVATION_DEG).astype(np.uint16)
-"""Laser id (firing order) of each bottom-up ring."""
 DATA_BYTES = vd.PACKET_SIZE
 POSITION_BYTES = vd.TELEMETRY_PACKET_SIZE
 
@@ -147,6 +145,6 @@ def scan_event(stamp, points: np.ndarray, geo: Geo) -> ScanEvent:
     out = np.zeros(len(points), POINT_DTYPE)
     for name in ("x", "y", "z", "intensity", "time"):
         out[name] = points[name]
-    out["ring"] = LASER_OF_RING[points["ring"]]
+    out["ring"] = dialect.laser_of_ring(points["ring"])
     t = geo.seconds(ns_of(seconds))
     return ScanEvent(t, Scan(t, out))

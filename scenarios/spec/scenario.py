@@ -197,7 +197,7 @@ class Control(BaseModel):
 
 
 class FastVariant(BaseModel):
-    """What `riverbench suite --fast` runs instead: a shorter stretch with its own expectations."""
+    """What `--fast` (riverbench run, sweep, suite) runs instead: a shorter stretch with its own expectations."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -245,7 +245,7 @@ class Scenario(BaseModel):
     matchers: list[MatcherSpec] = Field(default_factory=_default_matchers, description="scan matchers under test")
     estimators: list[EstimatorSpec] = Field(default_factory=_default_estimators, description="estimators under test")
     expect: list[str] = Field(default_factory=list, description="'metric op value' over dotted paths of metrics.json")
-    fast: FastVariant | None = Field(None, description="the short variant `suite --fast` runs")
+    fast: FastVariant | None = Field(None, description="the short variant `--fast` runs (run, sweep, suite)")
 
     @model_validator(mode="before")
     @classmethod
@@ -323,7 +323,8 @@ class Scenario(BaseModel):
         return [Expectation.parse(text) for text in self.expect]
 
     def fast_variant(self) -> Scenario:
-        """The scenario `suite --fast` runs: its [fast] stretch and expectations (itself without one)."""
+        """The scenario `suite --fast` runs: its [fast] stretch and expectations, or itself without one (`run --fast` and
+        `sweep --fast` refuse that: scenarios.spec.library.load_fast)."""
         if self.fast is None:
             return self
         data = self.resolved()

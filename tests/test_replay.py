@@ -363,7 +363,7 @@ def test_the_replay_command_writes_a_run_directory_and_refuses_bad_input_in_one_
     assert ok.returncode == 0, ok.stderr
     assert "replayed 10 scans" in ok.stdout and (tmp_path / "run" / "gicp.tum").exists()
     for args, message in (
-        (["nothing", "--scenario", "canal_multipath"], "no such bag or pcap"),
+        (["nothing", "--scenario", "canal_multipath"], "no such bag, pcap or NMEA log"),
         (["bag", "--scenario", "canal_multipath", "--lidar-topic", "/x"], "/x"),
     ):
         bad = subprocess.run([*cli, *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)

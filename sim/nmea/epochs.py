@@ -1,15 +1,17 @@
 """A receiver's NMEA stream cut into epochs, each merged into one Epoch; what was not read, counted.
 
-Cutting (Splitter): an epoch is the run of sentences from one fix time to the next. A sentence
-with a fix time (GGA, RMC, GNS, GLL) closes the open epoch when its time differs in value from
-the epoch's (GGA '130711' and RMC '130711.00' are one epoch; compared to the millisecond), and
-so does a second sentence of a type a receiver writes once per epoch (GGA, RMC, GNS, GLL, VTG,
-ZDA, GST), which cuts the epochs of a receiver that leaves its time empty while it has no fix.
-Every other line (GSA, GSV, unread lines) joins the open epoch. Lines that are not read are
-counted by reason (sim.nmea.read.REASONS) in a Tally.
+Cutting (Splitter): an epoch is the run of sentences from one fix time to the next. A GGA, RMC or
+GNS closes the open epoch when its time differs in value from the epoch's (GGA '130711' and RMC
+'130711.00' are one epoch; compared to the millisecond; a receiver that writes one GGA and RMC per
+system, GPGGA then GAGGA, writes them with one time). When either has no time, a second sentence
+of a type a receiver writes once per epoch (GGA, RMC, GNS, GLL, VTG, ZDA, GST) closes it: this
+cuts the epochs of a receiver that leaves its time empty while it has no fix, and a GLL, whose
+time never cuts (receivers stamp it a few milliseconds or a second off their GGA's), joins the
+epoch it follows. Every other line (GSA, GSV, unread lines) joins the open epoch. Lines that are
+not read are counted by reason (sim.nmea.read.REASONS) in a Tally.
 
 Merging (assemble), each value from the first sentence that gives it:
-- time: GGA, RMC, GNS, GLL, else ZDA; date: RMC, else ZDA (a day later or earlier when ZDA's time
+- time: GGA, RMC, GNS, else GLL, else ZDA (of several GGAs, RMCs or GNSs: the GN talker's, else the first); date: RMC, else ZDA (a day later or earlier when ZDA's time
   of day is more than 12 h from the epoch's: it straddles midnight);
 - position and height: GGA, else GNS, else RMC, else GLL (latitude beyond +-90 deg or longitude
   beyond +-180 deg: none);
@@ -17,8 +19,8 @@ Merging (assemble), each value from the first sentence that gives it:
   reckoning): GGA's, else from GNS's mode letters (the best of its systems: R 4, F 5, D 2, A/P 1,
   E 6, N 0), else RMC's or GLL's (mode E: 6; mode N or status not 'A': 0; else mode D 2, R 4, F
   5, others 1), else 0; an epoch with no position has quality 0;
-- satellites used: GGA's count (a receiver that reports 0 with a fix: GNS's, else the GSAs'
-  satellites), HDOP GGA's, else GNS's, else GSA's; PDOP and VDOP from the GSAs;
+- satellites used: GNS's count (it counts every system), else GGA's, else (none or 0 with a fix)
+  the GSAs' satellites; HDOP GGA's, else GNS's, else GSA's; PDOP and VDOP from the GSAs;
 - speed and course: RMC, else VTG;
 - satellites: every GSV slot, by (system, svid, signal) (sim.nmea.systems; the last report of
   one wins), used when a GSA of the epoch lists it (by the NMEA 4.10 system id, the talker, else
@@ -31,13 +33,16 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import UTC, date, datetime, timedelta
+from typing import Protocol, TypeVar
 
 from sim.nmea import systems
 from sim.nmea.read import Gga, Gll, Gns, Gsa, Gsv, Record, Rmc, Skipped, Vtg, Zda, kind, read
 
-TIMED = ("GGA", "RMC", "GNS", "GLL")
-"""Sentences that carry the epoch's fix time."""
-ONCE = (*TIMED, "VTG", "ZDA", "GST")
+TIMED = ("GGA", "RMC", "GNS")
+"""Sentences whose fix time cuts epochs."""
+POSITIONS = (*TIMED, "GLL")
+"""Sentences that give a position (an epoch with none of them is no fix)."""
+ONCE = (*POSITIONS, "VTG", "ZDA", "GST")
 """Sentences a receiver writes at most once per epoch."""
 HALF_DAY_S = 43_200.0
 GNS_QUALITY = {"R": 4, "F": 5, "D": 2, "A": 1, "P": 1, "E": 6, "N": 0}
@@ -64,7 +69,7 @@ class Tally:
 class Line:
     """One line of the stream: the caller's tag (e.g. its log time), the text, and its record (None when it was not read)."""
 
-    tag: object
+    tag: int
     text: str
     record: Record | None
 
@@ -79,11 +84,11 @@ class Splitter:
         self._kinds: set[str] = set()
 
     @property
-    def open_tag(self) -> object | None:
+    def open_tag(self) -> int | None:
         """The tag of the open epoch's first line (None when none is open)."""
         return self._lines[0].tag if self._lines else None
 
-    def add(self, tag: object, text: str) -> list[Line] | None:
+    def add(self, tag: int, text: str) -> list[Line] | None:
         """Take one line; a line that starts a new epoch returns the one it closed."""
         text = text.strip()
         if not text or text.startswith("#"):
@@ -98,10 +103,11 @@ class Splitter:
             self.tally.read[name] += 1
         time = getattr(record, "seconds_of_day", None) if name in TIMED else None
         key = None if time is None else round(time * 1000)
-        closed = None
-        repeated = name in ONCE and name in self._kinds
-        if self._lines and (repeated or (key is not None and self._time is not None and key != self._time)):
-            closed = self.close()
+        if key is not None and self._time is not None:
+            cut = key != self._time
+        else:
+            cut = name in ONCE and name in self._kinds
+        closed = self.close() if cut else None
         self._lines.append(Line(tag, text, record))
         self._kinds.add(name)
         self._time = key if self._time is None else self._time
@@ -148,6 +154,8 @@ class Epoch:
     course_deg: float
     sats: tuple[Satellite, ...]
     lines: tuple[str, ...]
+    kinds: frozenset[str]
+    """The sentence types read in the epoch."""
 
     @property
     def has_fix(self) -> bool:
@@ -164,7 +172,12 @@ class Epoch:
 def assemble(lines: list[Line]) -> Epoch:
     """Merge one epoch's lines into an Epoch (module docstring)."""
     records = [line.record for line in lines if line.record is not None]
-    gga, gns, rmc, gll, vtg, zda = (next((r for r in records if isinstance(r, cls)), None) for cls in (Gga, Gns, Rmc, Gll, Vtg, Zda))
+    gga = _preferred([r for r in records if isinstance(r, Gga)])
+    gns = _preferred([r for r in records if isinstance(r, Gns)])
+    rmc = _preferred([r for r in records if isinstance(r, Rmc)])
+    gll = _preferred([r for r in records if isinstance(r, Gll)])
+    vtg = _preferred([r for r in records if isinstance(r, Vtg)])
+    zda = _preferred([r for r in records if isinstance(r, Zda)])
     gsas = [r for r in records if isinstance(r, Gsa)]
     timed = [r for r in (gga, rmc, gns, gll) if r is not None and r.seconds_of_day is not None]
     seconds = timed[0].seconds_of_day if timed else zda.seconds_of_day if zda is not None else None
@@ -173,9 +186,9 @@ def assemble(lines: list[Line]) -> Epoch:
     alt = source.alt if isinstance(source, Gga | Gns) else math.nan
     quality = _quality(gga, gns, rmc, gll) if source is not None else 0
     used = {systems.satellite(g.talker, prn, g.system_id) for g in gsas for prn in g.prns}
-    count = gga.num_sats if gga is not None else None
+    count = next((r.num_sats for r in (gns, gga) if r is not None and r.num_sats is not None), None)
     if not count and quality:
-        count = gns.num_sats if gns is not None and gns.num_sats else len(used)
+        count = len(used)
     return Epoch(
         seconds_of_day=seconds,
         date=_date(rmc, zda, seconds),
@@ -191,7 +204,21 @@ def assemble(lines: list[Line]) -> Epoch:
         course_deg=_first(*(r.course_deg for r in (rmc, vtg) if r is not None)),
         sats=_satellites([r for r in records if isinstance(r, Gsv)], used),
         lines=tuple(line.text for line in lines),
+        kinds=frozenset(kind(r) for r in records),
     )
+
+
+class _Talked(Protocol):
+    @property
+    def talker(self) -> str: ...
+
+
+T = TypeVar("T", bound=_Talked)
+
+
+def _preferred(records: list[T]) -> T | None:
+    """Of several sentences of one type in an epoch, the GN (combined) talker's, else the first; None when there is none."""
+    return next((r for r in records if r.talker == "GN"), records[0] if records else None)
 
 
 def _on_earth(lat: float, lon: float) -> bool:

@@ -28,6 +28,7 @@ from scenarios.report.plots import read_csv
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix, SatelliteReport
 from sim.lidar import HDL32E_ELEVATION_DEG
+from sim.nmea.epochs import Splitter
 
 STRETCH = "stretch={start_m = 350.0, end_m = 356.0}"  # canal_multipath: 3.1 s, 31 scans, 16 fixes (NLOS, 14 m off)
 SMOOTHED = ("hdop_switch", "ekf", "pf")
@@ -323,10 +324,10 @@ def test_nmea_and_rmc_read_back():
         rmc = fixes.from_nmea(12.5, [sim.nmea.rmc(dataclasses.replace(fix, quality=quality))], geo)
         assert rmc.quality == quality and (rmc.hdop == fixes.NOMINAL_HDOP)
         assert abs(rmc.enu[2]) < 0.01 if quality else np.isnan(rmc.enu).all()  # no altitude: the origin's height
-    epochs = fixes.Epochs()
+    epochs = Splitter()
     lines = fix.nmea() + fixes_later(fix).nmea()
-    closed = [epochs.add(k, line) for k, line in enumerate(lines)]
-    assert [c for c in closed if c] == [(list(range(4)), fix.nmea())] and epochs.close() == (list(range(4, 8)), lines[4:])
+    closed = [[(x.tag, x.text) for x in c] for c in (epochs.add(k, line) for k, line in enumerate(lines)) if c]
+    assert closed == [list(enumerate(fix.nmea()))] and [(x.tag, x.text) for x in epochs.close()] == list(enumerate(lines))[4:]
 
 
 def fixes_later(fix: GnssFix) -> GnssFix:

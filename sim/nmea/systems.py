@@ -120,7 +120,8 @@ def signal(system: str, signal_id: int | None) -> str:
     """The signal a GSV's NMEA 4.11 signal id names for `system` (the primary signal without one; 'id N' when unknown)."""
     if not signal_id:
         return PRIMARY.get(system, "")
-    return SIGNALS.get(system, {}).get(signal_id, f"id {signal_id:X}")
+    table = SIGNALS[GPS] if system in (SBAS, IMES) else SIGNALS.get(system, {})  # listed under GPS's system id, numbered as GPS's
+    return table.get(signal_id, f"id {signal_id:X}")
 
 
 def band(signal_name: str) -> str:

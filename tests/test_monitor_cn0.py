@@ -250,7 +250,9 @@ def multi_fix(t: float, rng, nlos: tuple[str, int] | None = None, loss_db: float
         if nlos is not None and nlos[0] == system:
             snr[nlos[1]] -= loss_db
         sats += [SatelliteReport(k + 1, float(45 * k % 360), float(e), float(c), True, system, signal) for k, (e, c) in enumerate(zip(el, snr))]
-    return GnssFix(stamp=t, lat=42.35, lon=-71.11, alt=0.0, enu=np.zeros(3), quality=1, num_sats=len(sats), hdop=1.0, vdop=1.5, pdop=1.8, sats=tuple(sats))
+    return GnssFix(
+        stamp=t, lat=42.35, lon=-71.11, alt=0.0, enu=np.zeros(3), quality=1, num_sats=len(sats), hdop=1.0, vdop=1.5, pdop=1.8, sats=tuple(sats)
+    )
 
 
 def test_gps_l1_only_reports_take_the_single_template_path():

@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 
 from sim import nmea
 from sim.gnss import GnssReceiver
+from sim.gnss_fix import GnssFix, SatelliteReport
 from sim.nmea.epochs import Epoch, Line, assemble
 from sim.nmea.read import Gsa, Gsv, Rmc, read
-from sim.gnss_fix import GnssFix, SatelliteReport
 
 
 def test_checksum_of_the_classic_example():

@@ -20,11 +20,10 @@ from rosbags.rosbag2 import Writer
 
 from scenarios.export.ros_messages import header, typestore
 from scenarios.pipeline import files
-from scenarios.replay import replay
+from scenarios.replay import nmea_log, replay
 from scenarios.report.plots import read_csv
 from sim.nmea import checksum
 from sim.nmea.epochs import Tally
-from scenarios.replay import nmea_log
 
 DATA = Path(__file__).parent / "data" / "nmea"
 RTK = DATA / "nmea_navsat_driver_rtk_nmea.log"
@@ -142,7 +141,9 @@ def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 def test_a_reference_that_does_not_overlap_is_one_line_and_exit_2(degraded, tmp_path):
     root, _ = degraded
-    next_day = [line if "RMC" not in line else sentence(line[1:].split("*")[0].replace(",200420,", ",210420,")) for line in RTK.read_text().splitlines()]
+    next_day = [
+        line if "RMC" not in line else sentence(line[1:].split("*")[0].replace(",200420,", ",210420,")) for line in RTK.read_text().splitlines()
+    ]
     (tmp_path / "next_day.nmea").write_text("\n".join(next_day) + "\n")
     with pytest.raises(ValueError, match="do not overlap") as error:
         replay(root / "degraded.nmea", SCENARIO, tmp_path / "out", reference=tmp_path / "next_day.nmea")
@@ -185,7 +186,12 @@ def test_bags_of_nmea_sentences_or_navsatfix_alone_are_gnss_only(tmp_path):
     stamped = list(nmea_log.stamped(RTK, datetime(2020, 1, 1).date(), nmea_log.LogStats()))
     sentences = [(ns, line) for ns, epoch in stamped for line in epoch.lines]
     msg = store.types["nmea_msgs/msg/Sentence"]
-    bag_of(tmp_path / "nmea_bag", "/nmea_sentence", "nmea_msgs/msg/Sentence", [(ns, msg(header=header(store, ns, "gps"), sentence=s)) for ns, s in sentences])
+    bag_of(
+        tmp_path / "nmea_bag",
+        "/nmea_sentence",
+        "nmea_msgs/msg/Sentence",
+        [(ns, msg(header=header(store, ns, "gps"), sentence=s)) for ns, s in sentences],
+    )
     from_bag = replay(tmp_path / "nmea_bag", SCENARIO, tmp_path / "bag_run", report=False)
     assert from_bag.metrics["run"]["gnss_only"] and from_bag.metrics["run"]["recording"]["nmea"]["epochs"] == 120
     a, b = read_csv(log.out_dir / "gps.csv"), read_csv(from_bag.out_dir / "gps.csv")
@@ -196,8 +202,18 @@ def test_bags_of_nmea_sentences_or_navsatfix_alone_are_gnss_only(tmp_path):
     navsat = store.types["sensor_msgs/msg/NavSatFix"]
     status = store.types["sensor_msgs/msg/NavSatStatus"]
     fixes = [
-        (ns, navsat(header=header(store, ns, "gps"), status=status(status=2, service=1), latitude=e.lat, longitude=e.lon, altitude=e.alt,
-                    position_covariance=np.zeros(9), position_covariance_type=0))
+        (
+            ns,
+            navsat(
+                header=header(store, ns, "gps"),
+                status=status(status=2, service=1),
+                latitude=e.lat,
+                longitude=e.lon,
+                altitude=e.alt,
+                position_covariance=np.zeros(9),
+                position_covariance_type=0,
+            ),
+        )
         for ns, e in stamped
     ]
     bag_of(tmp_path / "navsat_bag", "/fix", "sensor_msgs/msg/NavSatFix", fixes)

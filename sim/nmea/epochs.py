@@ -4,14 +4,16 @@ Cutting (Splitter): an epoch is the run of sentences from one fix time to the ne
 GNS closes the open epoch when its time differs in value from the epoch's (GGA '130711' and RMC
 '130711.00' are one epoch; compared to the millisecond; a receiver that writes one GGA and RMC per
 system, GPGGA then GAGGA, writes them with one time). When either has no time, a second sentence
-of a type a receiver writes once per epoch (GGA, RMC, GNS, GLL, VTG, ZDA, GST) closes it: this
+of a type a receiver writes once per epoch (GGA, RMC, GNS, GLL, VTG, ZDA, GST) from the same talker
+(GPVTG and GAVTG are one epoch's) closes it: this
 cuts the epochs of a receiver that leaves its time empty while it has no fix, and a GLL, whose
 time never cuts (receivers stamp it a few milliseconds or a second off their GGA's), joins the
 epoch it follows. Every other line (GSA, GSV, unread lines) joins the open epoch. Lines that are
 not read are counted by reason (sim.nmea.read.REASONS) in a Tally.
 
 Merging (assemble), each value from the first sentence that gives it:
-- time: GGA, RMC, GNS, else GLL, else ZDA (of several GGAs, RMCs or GNSs: the GN talker's, else the first); date: RMC, else ZDA (a day later or earlier when ZDA's time
+- time: GGA, RMC, GNS, else GLL, else ZDA (of several GGAs, RMCs or GNSs: the GN talker's, else
+  the first); date: RMC, else ZDA (a day later or earlier when ZDA's time
   of day is more than 12 h from the epoch's: it straddles midnight);
 - position and height: GGA, else GNS, else RMC, else GLL (latitude beyond +-90 deg or longitude
   beyond +-180 deg: none);
@@ -45,6 +47,8 @@ POSITIONS = (*TIMED, "GLL")
 ONCE = (*POSITIONS, "VTG", "ZDA", "GST")
 """Sentences a receiver writes at most once per epoch."""
 HALF_DAY_S = 43_200.0
+Day = date
+"""A calendar date (Epoch has a field named date)."""
 GNS_QUALITY = {"R": 4, "F": 5, "D": 2, "A": 1, "P": 1, "E": 6, "N": 0}
 """GNS mode letter -> GGA quality, best first."""
 
@@ -81,7 +85,7 @@ class Splitter:
         self.tally = tally if tally is not None else Tally()
         self._lines: list[Line] = []
         self._time: float | None = None
-        self._kinds: set[str] = set()
+        self._kinds: set[tuple[str, str]] = set()  # (sentence type, talker) read in the open epoch
 
     @property
     def open_tag(self) -> int | None:
@@ -103,13 +107,14 @@ class Splitter:
             self.tally.read[name] += 1
         time = getattr(record, "seconds_of_day", None) if name in TIMED else None
         key = None if time is None else round(time * 1000)
+        talker = record.talker if record is not None else ""
         if key is not None and self._time is not None:
             cut = key != self._time
         else:
-            cut = name in ONCE and name in self._kinds
+            cut = name in ONCE and (name, talker) in self._kinds
         closed = self.close() if cut else None
         self._lines.append(Line(tag, text, record))
-        self._kinds.add(name)
+        self._kinds.add((name, talker))
         self._time = key if self._time is None else self._time
         return closed
 
@@ -162,7 +167,7 @@ class Epoch:
         """A measured or dead-reckoned position (quality not 0)."""
         return self.quality != 0
 
-    def utc(self, day: date) -> datetime | None:
+    def utc(self, day: Day) -> datetime | None:
         """The epoch's UTC time on `day` (None without a time of day)."""
         if self.seconds_of_day is None:
             return None

@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import date
 from typing import NamedTuple
@@ -354,6 +355,16 @@ def _gst(talker: str, f: _Fields) -> Gst:
     return Gst(talker, f.time(0), *(f.number(i) for i in range(1, 8)))
 
 
-_DECODERS = {"GGA": _gga, "RMC": _rmc, "GSA": _gsa, "GSV": _gsv, "VTG": _vtg, "GLL": _gll, "ZDA": _zda, "GNS": _gns, "GST": _gst}
+_DECODERS: dict[str, Callable[[str, _Fields], Record]] = {
+    "GGA": _gga,
+    "RMC": _rmc,
+    "GSA": _gsa,
+    "GSV": _gsv,
+    "VTG": _vtg,
+    "GLL": _gll,
+    "ZDA": _zda,
+    "GNS": _gns,
+    "GST": _gst,
+}
 KINDS = tuple(_DECODERS)
 """The sentence types read."""

@@ -30,7 +30,7 @@ from scenarios.replay.recording import Event, Geo, LogStats, Place, RecordedFix,
 from sim.nmea.epochs import HALF_DAY_S, Epoch, Splitter, Tally, assemble
 
 SUFFIXES = (".nmea", ".nmea0183")
-BAG_SUFFIXES = (".bag", ".mcap", ".db3", ".yaml")
+BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 SNIFF_BYTES = 65_536
 _SENTENCE = re.compile(rb"^\s*\$[A-Z]{2}[A-Z0-9]{3},", re.MULTILINE)
 

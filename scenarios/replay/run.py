@@ -104,12 +104,12 @@ def replay(
         if opened.gnss_only:
             raise ValueError(f"{path}: --nmea gives the GPS of a recording with LiDAR; this one has none (replay the NMEA log alone)")
         opened = nmea_log.attach(opened, nmea, place)
-    truth = None
+    ref = None
     if reference is not None:
-        truth = reference_module.read(reference, opened.geo, place)
-        truth.overlap(opened)
+        ref = reference_module.read(reference, opened.geo, place)
+        ref.overlap(opened)
     with staged_dir(out) as tmp:
-        tree = replay_into(scenario, opened, tmp, workers, progress, truth)
+        tree = replay_into(scenario, opened, tmp, workers, progress, ref)
         if report:
             from scenarios.replay import report as report_module
 
@@ -150,9 +150,9 @@ def pose_samples(events: Iterator[Event]) -> Iterator[Event]:
             yield ScanEvent(event.stamp, Scan.empty(event.stamp))
 
 
-def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress, truth: Reference | None = None) -> dict:
+def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress, ref: Reference | None = None) -> dict:
     """Stream the recording through the matchers and estimators and write the run directory's data files into `tmp`
-    (scored against `truth` when there is one)."""
+    (scored against the reference `ref` when there is one)."""
     wall_start = time.perf_counter()
     fed = without_matchers(scenario) if recording.gnss_only else scenario
     recorder = make_recorder(fed)
@@ -205,10 +205,10 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     }
     antenna = np.asarray(scenario.gnss.antenna_offset_m, dtype=float)
     tree = replay_metrics.compute(rec, run_info, antenna)
-    if truth is not None:
-        tree["reference"] = truth.tree()
+    if ref is not None:
+        tree["reference"] = ref.tree()
         for eid, node in tree["estimators"].items():
-            node["against_reference"] = reference_module.score(rec, eid, truth, antenna)
+            node["against_reference"] = reference_module.score(rec, eid, ref, antenna)
     tree = run_metrics.json_safe(tree)
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: its matchers and estimators replayed over {recording.path}"

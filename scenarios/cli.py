@@ -548,11 +548,17 @@ def export(
 
 @app.command()
 def replay(
-    recording: Path = typer.Argument(..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too) or a Velodyne HDL-32E pcap"),
+    recording: Path = typer.Argument(
+        ..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too), a Velodyne HDL-32E pcap, or an NMEA log (a GNSS-only replay)"
+    ),
     scenario: str = typer.Option(..., help="the scenario whose matchers, estimators, mount and world origin to use (name or .toml)"),
     out: Path = typer.Option(None, help="run directory (default runs/replay-<name>-<UTC time>/)"),
     lidar_topic: str = typer.Option(None, help="the PointCloud2 topic (default: the only one)"),
     gps_topic: str = typer.Option(None, help="the NMEA Sentence or NavSatFix topic (default: the only one)"),
+    nmea: Path = typer.Option(None, help="an NMEA log whose fixes replace the recording's own GPS (a capture's GPRMC, a bag's GPS topic)"),
+    reference: Path = typer.Option(
+        None, help="score the estimators against this reference: a TUM file, an RTK receiver's NMEA log (quality 4/5 fixes) or a GPX track"
+    ),
     workers: int = typer.Option(1, min=1, help="processes: 2 overlaps matching with reading"),
     no_report: bool = typer.Option(False, "--no-report", help="skip report.md and report.html"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
@@ -566,7 +572,7 @@ def replay(
     with stoppable("replay interrupted; nothing written", (RunInterrupted,)):
         with user_errors():
             if not recording.exists():
-                raise ValueError(f"{recording}: no such bag or pcap")
+                raise ValueError(f"{recording}: no such bag, pcap or NMEA log")
             scenarios_spec = load_scenario(scenario)
         try:
             with user_errors(), RunProgress(recording.name, console, quiet) as progress:
@@ -576,6 +582,8 @@ def replay(
                     out,
                     lidar_topic=lidar_topic,
                     gps_topic=gps_topic,
+                    nmea=nmea,
+                    reference=reference,
                     workers=workers,
                     report=not no_report,
                     progress=progress.update,
@@ -584,7 +592,11 @@ def replay(
             errors.print(f"[bold red]replay failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(1) from None
     target = result.report if result.report.exists() else result.out_dir
-    console.print(f"replayed {result.metrics['run']['scans']} scans: {target}", highlight=False)
+    run = result.metrics["run"]
+    if "nmea" in run["recording"]:
+        console.print(f"NMEA: {run['recording']['nmea']['summary']}", highlight=False)
+    what = f"{run['fixes']} fixes (GNSS-only: no LiDAR, estimators without a matcher)" if run["gnss_only"] else f"{run['scans']} scans"
+    console.print(f"replayed {what}: {target}", highlight=False)
 
 
 @scenarios_app.command("list")

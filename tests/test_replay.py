@@ -9,6 +9,7 @@ import math
 import shutil
 import struct
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,6 +29,7 @@ from scenarios.report.plots import read_csv
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix, SatelliteReport
 from sim.lidar import HDL32E_ELEVATION_DEG
+from sim.nmea.epochs import Splitter
 
 STRETCH = "stretch={start_m = 350.0, end_m = 356.0}"  # canal_multipath: 3.1 s, 31 scans, 16 fixes (NLOS, 14 m off)
 SMOOTHED = ("hdop_switch", "ekf", "pf")
@@ -343,10 +345,10 @@ def test_nmea_and_rmc_read_back():
         rmc = fixes.from_nmea(12.5, [sim.nmea.rmc(dataclasses.replace(fix, quality=quality))], geo)
         assert rmc.quality == quality and (rmc.hdop == fixes.NOMINAL_HDOP)
         assert abs(rmc.enu[2]) < 0.01 if quality else np.isnan(rmc.enu).all()  # no altitude: the origin's height
-    epochs = fixes.Epochs()
+    epochs = Splitter()
     lines = fix.nmea() + fixes_later(fix).nmea()
-    closed = [epochs.add(k, line) for k, line in enumerate(lines)]
-    assert [c for c in closed if c] == [(list(range(4)), fix.nmea())] and epochs.close() == (list(range(4, 8)), lines[4:])
+    closed = [[(x.tag, x.text) for x in c] for c in (epochs.add(k, line) for k, line in enumerate(lines)) if c]
+    assert closed == [list(enumerate(fix.nmea()))] and [(x.tag, x.text) for x in epochs.close()] == list(enumerate(lines))[4:]
 
 
 def fixes_later(fix: GnssFix) -> GnssFix:
@@ -383,8 +385,27 @@ def test_the_replay_command_writes_a_run_directory_and_refuses_bad_input_in_one_
     assert ok.returncode == 0, ok.stderr
     assert "replayed 10 scans" in ok.stdout and (tmp_path / "run" / "gicp.tum").exists()
     for args, message in (
-        (["nothing", "--scenario", "canal_multipath"], "no such bag or pcap"),
+        (["nothing", "--scenario", "canal_multipath"], "no such bag, pcap or NMEA log"),
         (["bag", "--scenario", "canal_multipath", "--lidar-topic", "/x"], "/x"),
     ):
         bad = subprocess.run([*cli, *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_a_capture_takes_its_gps_from_an_nmea_log(recorded, tmp_path):
+    """`--nmea`: the run's own NMEA log (GGA, RMC, GSA, GSV) replaces the capture's GPRMC; a log of another day is refused."""
+    run = recorded["run"]
+    result = replay(recorded["root"] / "run.pcap", recorded["scenario"], tmp_path / "out", nmea=run / "gps.nmea", report=False)
+    assert result.recording.gps_source.startswith("NMEA log gps.nmea") and result.metrics["run"]["recording"]["nmea"]["epochs"] == 16
+    sim_fixes, got = read_csv(run / "gps.csv"), read_csv(result.out_dir / "gps.csv")
+    assert np.abs(got["t"] - sim_fixes["t"]).max() <= 0.0051  # NMEA's 0.01 s
+    np.testing.assert_array_equal(got["quality"], sim_fixes["quality"])
+    np.testing.assert_array_equal(got["num_sats"], sim_fixes["num_sats"])
+    np.testing.assert_allclose(got["hdop"], sim_fixes["hdop"], atol=0.005)  # GGA's 2 decimals, not the capture's nominal HDOP
+    assert np.hypot(got["e"] - sim_fixes["e"], got["n"] - sim_fixes["n"]).max() < 0.015
+    rtk = Path(__file__).parent / "data" / "nmea" / "nmea_navsat_driver_rtk_nmea.log"
+    with pytest.raises(ValueError, match="do not overlap") as error:
+        replay(recorded["root"] / "run.pcap", recorded["scenario"], tmp_path / "other", nmea=rtk)
+    assert "\n" not in str(error.value) and not (tmp_path / "other").exists()
+    with pytest.raises(ValueError, match="has none"):
+        replay(rtk, recorded["scenario"], tmp_path / "alone", nmea=rtk)

@@ -2,12 +2,13 @@
 
 Topics are picked as KISS-ICP's rosbag dataloader picks its cloud: the only
 sensor_msgs/msg/PointCloud2 topic, or the one `lidar_topic` names (several and none named: a
-one-line error listing them). The GPS: the only nmea_msgs/msg/Sentence topic (the receiver's own
-sentences, with its satellites, C/N0 and dead-reckoning quality), else the only
-sensor_msgs/msg/NavSatFix topic, or the one `gps_topic` names (either type). With NMEA, the only
-NavSatFix topic and the only gps_msgs/msg/GPSFix topic, if any, refine its epochs (scenarios.replay.fixes).
-Every event is stamped with its message's header stamp (see scenarios.replay.recording for the time
-base and the ordering; scenarios.replay.clouds and .fixes for the fields).
+one-line error listing them); a bag without any is replayed on its GPS alone (GNSS-only). The GPS:
+the only nmea_msgs/msg/Sentence topic (the receiver's own sentences, with its satellites, C/N0 and
+dead-reckoning quality), else the only sensor_msgs/msg/NavSatFix topic, or the one `gps_topic`
+names (either type). With NMEA, the only NavSatFix topic and the only gps_msgs/msg/GPSFix topic, if
+any, refine its epochs (scenarios.replay.fixes). Every event is stamped with its message's header
+stamp (see scenarios.replay.recording for the time base and the ordering; scenarios.replay.clouds
+and .fixes for the fields).
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from scenarios.export.ros_messages import typestore
 from scenarios.pipeline.feed import BadScan
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import clouds, fixes
-from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, Place, RecordedFix, Recording, TimeOrder
+from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, LogStats, Place, RecordedFix, Recording, TimeOrder
+from sim.nmea.epochs import Line, Splitter, assemble
 
 CLOUD = "sensor_msgs/msg/PointCloud2"
 SENTENCE = "nmea_msgs/msg/Sentence"
@@ -36,16 +38,20 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
     path = Path(path)
     with opened(path) as reader:
         types = {topic: info.msgtype for topic, info in reader.topics.items()}
-        lidar = pick(path, types, (CLOUD,), lidar_topic, "--lidar-topic")
+        clouds_in_bag = lidar_topic is not None or CLOUD in types.values()
+        lidar = pick(path, types, (CLOUD,), lidar_topic, "--lidar-topic") if clouds_in_bag else ""
         gps = pick(path, types, (SENTENCE,), gps_topic, "--gps-topic", fallback=(NAVSAT,))
         refine = tuple(t for t in (sole(types, NAVSAT), sole(types, GPSFIX)) if t) if types[gps] == SENTENCE else ()
-        if not reader.topics[lidar].msgcount:
+        if lidar and not reader.topics[lidar].msgcount:
             raise ValueError(f"{path}: topic {lidar} holds no point cloud")
+        if not lidar and not reader.topics[gps].msgcount:
+            raise ValueError(f"{path}: no PointCloud2 topic, and the GPS topic {gps} holds no message")
         geo = Geo.choose(place, reader.start_time, first_position(reader, gps, place))
         span = (geo.seconds(reader.start_time), geo.seconds(reader.end_time))
         kind = "rosbag2" if reader.is2 else "ROS 1 bag"
     source = gps + (f" (positions and DOPs refined by {' and '.join(refine)})" if refine else "")
-    return Recording(path, kind, lidar, source, geo, *span, events=lambda: events(path, lidar, gps, refine, geo))
+    stats = LogStats() if types[gps] == SENTENCE else None
+    return Recording(path, kind, lidar, source, geo, *span, events=lambda: events(path, lidar, gps, refine, geo, stats), nmea=stats)
 
 
 @contextmanager
@@ -106,27 +112,28 @@ def header_ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
-def events(path: Path, lidar: str, gps: str, refine: tuple[str, ...], geo: Geo) -> Iterator[Event]:
-    """Scans, fixes and unreadable scans in time order, read lazily."""
-    order, epochs = TimeOrder(), fixes.Epochs()
+def events(path: Path, lidar: str, gps: str, refine: tuple[str, ...], geo: Geo, stats: LogStats | None) -> Iterator[Event]:
+    """Scans, fixes and unreadable scans in time order, read lazily (NMEA lines and epochs counted into `stats`)."""
+    order = TimeOrder()
     precise: dict[int, dict[str, object]] = {}  # header stamp -> message type -> the refining message
+    epochs = Splitter(stats.tally if stats is not None else None)
     with opened(path) as reader:
         connections = [c for c in reader.connections if c.topic in (lidar, gps, *refine)]
         for connection, log_ns, raw in reader.messages(connections=connections):
-            if connection.topic == lidar:
+            if lidar and connection.topic == lidar:
                 order.add(scan_event(reader, connection.msgtype, raw, lidar, geo.seconds(log_ns), geo))
                 continue
             msg = reader.deserialize(raw, connection.msgtype)
             if connection.topic in refine:
                 precise.setdefault(header_ns(msg), {})[connection.msgtype] = msg
             elif connection.msgtype == SENTENCE:
-                add_epoch(order, epochs.add(header_ns(msg), msg.sentence), precise, geo)
+                add_epoch(order, epochs.add(header_ns(msg), msg.sentence), precise, geo, stats)
             else:
                 stamp = geo.seconds(header_ns(msg))
                 order.add(RecordedFix(stamp, fixes.from_navsatfix(stamp, msg, geo)))
-            pending = math.inf if epochs.open_ns is None else geo.seconds(epochs.open_ns)
+            pending = math.inf if epochs.open_tag is None else geo.seconds(epochs.open_tag)
             yield from order.release(min(geo.seconds(log_ns) - REORDER_LAG_S, pending))
-        add_epoch(order, epochs.close(), precise, geo)
+        add_epoch(order, epochs.close(), precise, geo, stats)
         yield from order.rest()
 
 
@@ -144,13 +151,18 @@ def scan_event(reader: AnyReader, msgtype: str, raw: bytes, topic: str, logged: 
         return BadScan(stamp, topic, str(exc))
 
 
-def add_epoch(order: TimeOrder, epoch: tuple[list[int], list[str]] | None, precise: dict[int, dict[str, object]], geo: Geo) -> None:
-    """Queue a closed NMEA epoch's fix, refined by the NavSatFix and GPSFix stamped like one of its sentences (older ones dropped)."""
-    if epoch is None:
+def add_epoch(order: TimeOrder, closed: list[Line] | None, precise: dict[int, dict[str, object]], geo: Geo, stats: LogStats | None) -> None:
+    """Queue a closed NMEA epoch's fix (stamped with its first sentence's header), refined by the NavSatFix and GPSFix stamped like
+    one of its sentences (older ones dropped)."""
+    if closed is None:
         return
-    stamps, lines = epoch
+    stamps, lines = [line.tag for line in closed], [line.text for line in closed]
     stamp = geo.seconds(stamps[0])
-    fix = fixes.from_nmea(stamp, lines, geo)
+    epoch = assemble(closed)
+    fix = fixes.from_epoch(stamp, epoch, geo)
+    if stats is not None:
+        stats.epochs += 1
+        stats.with_fix += epoch.has_fix
     match = next((precise[ns] for ns in stamps if ns in precise), {})
     for ns in [ns for ns in precise if ns <= stamps[-1]]:
         del precise[ns]

@@ -27,6 +27,7 @@ from scenarios.pipeline.feed import BadScan
 from scenarios.pipeline.stream import ScanEvent
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix
+from sim.nmea.epochs import Tally
 
 DAY_NS = 86_400 * 10**9
 ORIGIN_RADIUS_M = 20_000.0
@@ -99,9 +100,37 @@ def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> 
     return float(np.linalg.norm(np.subtract(pymap3d.geodetic2ecef(*a), pymap3d.geodetic2ecef(*b))))
 
 
+@dataclass
+class LogStats:
+    """What reading NMEA sentences counted: lines read and skipped (sim.nmea.epochs.Tally), epochs, those with a fix, and
+    those left out as out of time order."""
+
+    tally: Tally = field(default_factory=Tally)
+    epochs: int = 0
+    with_fix: int = 0
+    out_of_order: int = 0
+
+    def summary(self) -> str:
+        """One line for the user."""
+        late = f"; {self.out_of_order} epochs out of time order left out" if self.out_of_order else ""
+        return f"{self.tally.summary()}; {self.epochs} epochs, {self.with_fix} with a fix{late}"
+
+    def tree(self) -> dict:
+        """The counts as metrics.json holds them."""
+        return {
+            "read": dict(sorted(self.tally.read.items())),
+            "skipped": dict(self.tally.skipped.most_common()),
+            "epochs": self.epochs,
+            "with_fix": self.with_fix,
+            "out_of_order": self.out_of_order,
+        }
+
+
 @dataclass(frozen=True)
 class Recording:
-    """An opened recording: what was picked from it, its time span in replay seconds, and its events (read lazily, once)."""
+    """An opened recording: what was picked from it (lidar_source '' when it has no LiDAR: a GNSS-only replay), its time
+    span in replay seconds, its events (read lazily, once) and, when its GPS is NMEA, what reading it counted (filled as the
+    events are read)."""
 
     path: Path
     format: str
@@ -111,6 +140,12 @@ class Recording:
     t_start: float
     t_end: float
     events: Callable[[], Iterator[Event]] = field(repr=False)
+    nmea: LogStats | None = field(default=None, repr=False)
+
+    @property
+    def gnss_only(self) -> bool:
+        """No LiDAR: the estimators run on the fixes alone."""
+        return not self.lidar_source
 
 
 class TimeOrder:

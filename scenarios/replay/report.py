@@ -1,7 +1,9 @@
 """A replay's report: report.md, report.html and plots/map.png from its run directory, in the blocks and renderers of scenarios.report.run_report.
 
-There is no truth: the estimators are compared with the GPS fixes their own monitors trusted
-(a reference with its own error), the matchers by what they report about themselves.
+There is no truth: without a reference the estimators are compared with the GPS fixes their own
+monitors trusted (agreement with GPS, which has its own error, not accuracy: the report's first
+line says so); with one (`--reference`) they are scored against it. The matchers are judged by
+what they report about themselves. A GNSS-only replay (no LiDAR) says so in its first lines.
 """
 
 from __future__ import annotations
@@ -29,6 +31,17 @@ ESTIMATOR_COLUMNS = [
     Column("to GPS p95", get("against_gps.p95"), metres, None),
     Column("to GPS max", get("against_gps.max"), metres, None),
 ]
+REFERENCE_COLUMNS = [
+    Column("available", get("against_reference.available"), share, "high"),
+    Column("scored", get("against_reference.scored"), lambda v: num(v, ".0f"), None),
+    Column("APE rmse", get("against_reference.ape.rmse"), metres),
+    Column("APE median", get("against_reference.ape.median"), metres),
+    Column("APE p95", get("against_reference.ape.p95"), metres),
+    Column("APE max", get("against_reference.ape.max"), metres),
+    Column("blackouts", get("against_reference.blackout.count"), lambda v: num(v, ".0f"), None),
+    Column("blackout max", get("against_reference.blackout.max_error"), metres),
+    Column("blackout exit", get("against_reference.blackout.exit_error"), metres),
+]
 MATCHER_COLUMNS = [c for c in run_report.MATCHER_COLUMNS if c.title in ("success", "gated", "Hz", "ms p95", "points median", "degenerate")]
 
 
@@ -49,6 +62,17 @@ def build(tree: dict, images: dict[str, str]) -> list:
     ctx = run_report.Context(tree, {}, images, 0.0, {})
     blocks = [*header(tree), *run_report.failures(ctx)]
     estimators = tree.get("estimators", {})
+    if estimators and "reference" in tree:
+        ref = tree["reference"]
+        note = (
+            f"Horizontal error (m) of each estimate's {'antenna' if ref['point'] == 'antenna' else 'base_link'} against the reference, "
+            "interpolated to the times the estimates were sampled; available: share of those times with an estimate; blackout: "
+            "the worst error inside or at the exit of the recording's GPS blackouts (no measured fix)."
+        )
+        blocks += [
+            Heading(2, "Estimators against the reference"),
+            document.ranked_table("estimator", estimators, REFERENCE_COLUMNS, labels(estimators), note),
+        ]
     if estimators:
         note = (
             "No truth: horizontal distance (m) from each estimate's antenna, interpolated to the fix time, to the measured GPS "
@@ -68,20 +92,44 @@ def build(tree: dict, images: dict[str, str]) -> list:
 
 
 def header(tree: dict) -> list:
-    """Title, what was replayed through what, its time base and ENU origin, and how fast it ran."""
+    """Title; what the scores mean (agreement with GPS, or accuracy against a reference); GNSS-only or not; what was replayed
+    through what, its time base and ENU origin, what reading its NMEA skipped, and how fast it ran."""
     run, rec = tree["run"], tree["run"]["recording"]
     lat, lon = rec["origin"][:2]
+    ref = tree.get("reference")
+    if ref is None:
+        scoring = (
+            "No reference: the estimators are scored by their distance to the GPS fixes their own monitors trusted: agreement with "
+            "GPS, not accuracy (give --reference FILE to score accuracy)."
+        )
+    else:
+        scoring = (
+            f"Scored against the reference {Path(ref['path']).name} ({ref['format']}, {ref['samples']} samples of the {ref['point']}): "
+            "accuracy, within the reference's own error."
+        )
+    blocks = [Heading(1, f"riverbench replay: {Path(rec['path']).name}"), Text(scoring, "note")]
+    if run.get("gnss_only"):
+        blocks.append(
+            Text(
+                "GNSS-only replay: the recording has no LiDAR, so the estimators ran without a matcher (no odometry); their poses "
+                f"were read after each of the {run['fixes']} fixes.",
+                "note",
+            )
+        )
+    nmea = [Text(f"NMEA: {rec['nmea']['summary']}", "meta")] if "nmea" in rec else []
+    scans = f"{run['fixes']} GPS fixes (no scans)" if run.get("gnss_only") else f"{run['scans']} scans · {run['fixes']} GPS fixes"
     return [
-        Heading(1, f"riverbench replay: {Path(rec['path']).name}"),
-        Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {rec['format']} · lidar: {rec['lidar']} · GPS: {rec['gps']}", "meta"),
+        *blocks,
+        Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {rec['format']} · lidar: {rec['lidar'] or 'none'} · GPS: {rec['gps']}", "meta"),
         Text(
             f"time zero {rec['time_zero_utc']} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
             f"t = {num(run['t_start'], '.1f')} … {num(run['t_end'], '.1f')} s",
             "meta",
         ),
+        *nmea,
         Text(
             f"{num(run['duration_s'], '.1f')} s of recording in {num(run['wall_s'], '.1f')} s "
-            f"({num(run['realtime_factor'], '.1f')}× real time) · {run['scans']} scans · {run['fixes']} GPS fixes · "
+            f"({num(run['realtime_factor'], '.1f')}× real time) · {scans} · "
             f"peak memory {num(run['peak_rss_mb'], '.0f')} MB",
             "meta",
         ),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from datetime import UTC, datetime
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from matcher.result import MatchResult
+from riverbench import unixtime
 from scenarios.pipeline import files
 from scenarios.score import metrics
 from scenarios.score import windows as win
@@ -748,6 +750,35 @@ def test_tum_with_no_finite_pose_has_only_the_header(tmp_path):
     assert files.write_tum(path, np.arange(3.0), np.full((3, 4, 4), np.nan)) == 0
     assert path.read_text() == files.TUM_HEADER
     assert files.read_tum(path).shape[0] == 0
+
+
+def test_tum_with_a_time_zero_is_in_unix_nanoseconds_and_reads_back_on_the_scenario_clock(tmp_path):
+    zero = unixtime.unix_ns(datetime(2024, 6, 15, 14, 0, 0, tzinfo=UTC))
+    assert zero == 1_718_460_000 * 10**9  # date -u -d 2024-06-15T14:00:00Z +%s
+    t = 1974.7311226848155 + np.arange(5) / 10
+    poses = track(np.arange(5.0), np.zeros(5), np.zeros(5))
+    path = tmp_path / "est.tum"
+    assert files.write_tum(path, t, poses, zero) == 5
+    lines = path.read_text().splitlines()
+    assert lines[0] == files.TUM_HEADER.strip() and lines[1].startswith(files.TIME_ZERO + " 1718460000.000000000")
+    assert lines[2].split()[0] == "1718461974.731122685"  # 2024-06-15T14:32:54.731122685Z
+    np.testing.assert_allclose(files.read_tum(path)[:, 0], 1718460000.0 + t, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(files.read_tum(path, scenario_time=True)[:, 0], np.round(t * 1e9) / 1e9)
+
+
+@given(st.integers(-(10**19), 10**19))
+@FAST
+def test_unix_seconds_text_round_trips_nanoseconds(ns):
+    text = unixtime.seconds_text(ns)
+    assert unixtime.parse_seconds_ns(text) == ns and float(text) == pytest.approx(ns / 1e9, rel=1e-15, abs=1e-9)
+
+
+def test_waterline_keeps_the_plane_pose_and_attitude():
+    poses = np.array([pose(1.0, 2.0, 0.3, z=-0.4), np.full((4, 4), np.nan)])
+    poses[0, :3, :3] = Rotation.from_euler("xyz", [0.05, -0.02, 0.3]).as_matrix()
+    out = files.waterline(poses)
+    assert out[0, 2, 3] == 0.0 and np.array_equal(np.delete(out[0].ravel(), 11), np.delete(poses[0].ravel(), 11))
+    assert np.isnan(out[1, :2]).all() and poses[0, 2, 3] == -0.4
 
 
 def test_tum_files_read_by_evo_give_our_ape_and_yaw_error(tmp_path):

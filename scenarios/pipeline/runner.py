@@ -25,6 +25,7 @@ import tomli_w
 
 from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
+from riverbench.unixtime import unix_ns
 from scenarios.pipeline import files
 from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
@@ -153,11 +154,12 @@ def _write(
         + tomli_w.dumps(scenario.resolved())
     )
     (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")
-    files.write_tum(tmp / "groundtruth.tum", rec.scan_t, rec.truth)
+    zero = unix_ns(scenario.gnss.epoch_utc)  # UNIX time of scenario time 0 (scenarios.pipeline.files: time, height)
+    files.write_tum(tmp / "groundtruth.tum", rec.scan_t, files.waterline(rec.truth), zero)
     for eid, poses in rec.estimates.items():
-        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)
+        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, files.waterline(poses), zero)
     for mid, track in rec.matches.items():
-        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
+        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, files.waterline(track.pose), zero)
     files.write_gps_csv(tmp / "gps.csv", rec)
     errors = {eid: metrics.horizontal_error(p, rec.truth) for eid, p in rec.estimates.items()}
     files.write_windows_csv(tmp / "windows.csv", windows, rec, errors)

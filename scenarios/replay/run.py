@@ -9,7 +9,8 @@ the first scan, then moved as a whole onto the first pose any estimator reports 
 the matcher's first after it); without any estimate it stays chained from identity at the
 world origin. The run directory is written under a hidden name and renamed when complete:
 
-    scenario.toml  metrics.json (scenarios.replay.metrics)  <id>.tum per estimator and matcher
+    scenario.toml  metrics.json (scenarios.replay.metrics)  <id>.tum per estimator and matcher (UNIX time: the
+                   recording's own clock; at the waterline, as scenarios.pipeline.files writes a run's)
     gps.csv (every fix with each verdict)  gps.nmea (the recorded sentences, when there are any)
     report.md  report.html  plots/map.png
 """
@@ -168,9 +169,9 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     tree = {"provenance": provenance.collect(), **tree}
     (tmp / "metrics.json").write_text(json.dumps(tree, indent=2) + "\n")
     for eid, poses in rec.estimates.items():
-        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)
+        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, files.waterline(poses), geo.zero_ns)
     for mid, track in rec.matches.items():
-        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
+        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, files.waterline(track.pose), geo.zero_ns)
     files.write_gps_csv(tmp / "gps.csv", rec, truth=False)
     return tree
 

@@ -95,8 +95,8 @@ def load(run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_l
 
 
 def read_tum(path: Path) -> Track:
-    """A TUM file as a planar Track (empty when the file is missing or has no rows)."""
-    rows = files.read_tum(path) if path.exists() else np.zeros((0, 8))
+    """A TUM file as a planar Track on the scenario's clock (empty when the file is missing or has no rows)."""
+    rows = files.read_tum(path, scenario_time=True) if path.exists() else np.zeros((0, 8))
     qx, qy, qz, qw = rows[:, 4:8].T
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy**2 + qz**2))
     return Track(rows[:, 0], rows[:, 1], rows[:, 2], yaw)

@@ -861,3 +861,64 @@ def test_column_grows_after_it_was_read():
     for i in range(5000, 9000):
         column.append(np.array([i, -i]))
     assert np.array_equal(column.array()[:, 0], np.arange(9000))
+
+
+# ---------------------------------------------------------------- units and precision of metrics.json
+
+
+def every_metric_tree() -> list[dict]:
+    """A run's metrics tree with every node filled (windows, monitor, failures, vessel, movers) and a replay's."""
+    from scenarios.pipeline.runner import RUN_NUMBERS
+    from scenarios.replay import metrics as replay_metrics
+    from scenarios.score import vessel_log
+
+    n = 30
+    truth = line(n)
+    est = truth.copy()
+    est[:10] = np.nan
+    fixes, *_ = monitor_case()
+    rec = run_record(truth, {"e": est}, {"m": matcher_track(truth)}, fixes=fixes)
+    rec.failures = [{"component": "estimator", "id": "e", "stamp": 2.5, "reason": "x"}, {"component": "matcher", "id": "m", "stamp": 2.6, "reason": "x"}]
+    run_info = {**dict.fromkeys(RUN_NUMBERS, 1.5), "duration_s": 2.0, "mover_points": {"median": 1.0, "p90": 2.0, "max": 3.0, "scans_with": 0.5}}
+    windows = [win.Window(kind, 0.5, 1.0) for kind in win.KINDS]
+    run = metrics.compute(rec, windows, run_info, vessel_log.metrics(vessel_log.VesselLog(), 3.0, 0.1))
+    replay = replay_metrics.compute(rec, run_info, np.zeros(3))
+    return [metrics.json_safe(run), metrics.json_safe(replay)]
+
+
+def test_every_number_of_metrics_json_has_a_unit_and_a_precision_far_below_its_familys_tolerance():
+    from scenarios.score import baseline, units
+
+    paths = {path for tree in every_metric_tree() for path in baseline.flatten(tree)}
+    assert len(paths) > 150
+    for path in sorted(paths):
+        quantity = units.quantity_of(path)
+        assert quantity is not None, f"{path}: no unit in scenarios.score.units.QUANTITIES"
+        family = metrics.family_of(path)
+        if quantity.decimals is None or family.better == "none":
+            continue
+        if family.wall_clock:
+            assert family.rel_tol >= 0.25 and quantity.decimals >= 1, path  # judged on medians of ms, Hz, MB: 0.1 is nothing
+        else:
+            assert 0.5 * 10.0**-quantity.decimals <= family.abs_tol / 100, (path, quantity, family.name)
+    block = units.block()
+    assert block["*.ape.*"] == "m" and block["*.yaw.*"] == "deg" and block["matchers.*.success"] == "share (0-1)"
+
+
+def test_rounding_keeps_integers_flags_text_and_lists_and_rounds_floats_to_their_quantity():
+    from scenarios.score import units
+
+    tree = {
+        "run": {"seed": 3, "t_start": 1974.7311226848155, "wall_s": 26.058935375, "failures": [{"stamp": 1.23456789}], "lanes": [["gicp"]]},
+        "estimators": {"e": {"ape": {"rmse": 1.61300133691, "max": -0.00000001}, "yaw": {"p95": 1.7612345}, "failed": False, "available": 0.99868421}},
+        "matchers": {"m": {"points": {"median": 10457.5}, "ms": {"p95": 46.4396536}, "hz": 33.6687991}},
+        "vessel": {"outcome": "completed", "min_clearance_m": None},
+    }
+    out = units.rounded(tree)
+    assert out["run"] == {"seed": 3, "t_start": 1974.731123, "wall_s": 26.059, "failures": [{"stamp": 1.23456789}], "lanes": [["gicp"]]}
+    e = out["estimators"]["e"]
+    assert e["ape"] == {"rmse": 1.613, "max": 0.0} and math.copysign(1.0, e["ape"]["max"]) == 1.0
+    assert e["yaw"]["p95"] == 1.761 and e["failed"] is False and e["available"] == 0.9987
+    assert out["matchers"]["m"] == {"points": {"median": 10457.5}, "ms": {"p95": 46.44}, "hz": 33.669}
+    assert out["vessel"] == {"outcome": "completed", "min_clearance_m": None}
+    assert json.dumps(out["estimators"]["e"]["ape"]) == '{"rmse": 1.613, "max": 0.0}'

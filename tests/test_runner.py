@@ -103,8 +103,8 @@ def test_metrics_match_the_files(short_run):
     ekf = files.read_tum(short_run.out_dir / "ekf.tum")
     common, i, j = np.intersect1d(truth[:, 0], ekf[:, 0], return_indices=True)
     error = np.hypot(*(truth[i, 1:3] - ekf[j, 1:3]).T)
-    assert m["estimators"]["ekf"]["ape"]["max"] == pytest.approx(error.max(), abs=1e-5)
-    assert m["estimators"]["ekf"]["available"] == pytest.approx(len(common) / len(truth))
+    assert m["estimators"]["ekf"]["ape"]["max"] == pytest.approx(error.max(), abs=6e-5)  # metres to 0.1 mm (scenarios.score.units)
+    assert m["estimators"]["ekf"]["available"] == pytest.approx(len(common) / len(truth), abs=5e-5)  # shares to 1e-4
     with open(short_run.out_dir / "gps.csv") as f:
         rows = list(csv.DictReader(f))
     measured = [float(r["err_h"]) for r in rows if r["quality"] == "1"]
@@ -112,6 +112,25 @@ def test_metrics_match_the_files(short_run):
     assert m["gps"]["error"]["max"] == pytest.approx(max(measured), abs=1e-3)
     assert m["run"]["realtime_factor"] > 0 and m["run"]["peak_rss_mb"] > 100
     assert [e["expect"] for e in m["expectations"]] == short_run.scenario.expect
+
+
+def test_metrics_json_states_its_units_and_rounds_to_them(short_run):
+    from scenarios.batch import table
+    from scenarios.score import baseline, units
+
+    m = json.loads((short_run.out_dir / "metrics.json").read_text())
+    assert m["units"] == units.block() and list(m)[-1] == "units"
+    flat = baseline.flatten(m)
+    assert not any(path.startswith("units") for path in [*flat, *table.flatten(m)])
+    for path, value in flat.items():
+        quantity = units.quantity_of(path)
+        assert quantity is not None, path
+        if quantity.decimals is not None and value is not None:
+            assert round(value, quantity.decimals) == value, path
+    assert m["estimators"]["ekf"]["ape"]["p95"] == round(m["estimators"]["ekf"]["ape"]["p95"], 4)
+    for outcome in m["expectations"]:  # each verdict judged the number metrics.json shows
+        path = outcome["expect"].split()[0]
+        assert outcome["value"] == flat[path], path
 
 
 def test_nmea_log_has_valid_checksums(short_run):

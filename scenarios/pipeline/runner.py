@@ -31,7 +31,7 @@ from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.traffic_log import TrafficLog
-from scenarios.score import metrics, vessel_log
+from scenarios.score import metrics, units, vessel_log
 from scenarios.score import windows as win
 from scenarios.score.expectations import Outcome
 from scenarios.score.record import RunRecord
@@ -145,10 +145,10 @@ def _write(
 ) -> tuple[dict, list[Outcome]]:
     windows = win.find(rec.fixes, rec.injected, fix_period)
     tree = metrics.compute(rec, windows, run_info, vessel)
-    safe = metrics.json_safe(tree)
+    safe = units.rounded(metrics.json_safe(tree))  # expectations judge the numbers metrics.json shows
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]
-    safe = {"provenance": provenance.collect(), **safe}
+    safe = {"provenance": provenance.collect(), **safe, "units": units.block()}
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
         + tomli_w.dumps(scenario.resolved())

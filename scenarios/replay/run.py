@@ -45,6 +45,7 @@ from scenarios.replay import bag, pcap
 from scenarios.replay import metrics as replay_metrics
 from scenarios.replay.recording import Place, Recording
 from scenarios.score import metrics as run_metrics
+from scenarios.score import units
 from scenarios.score.record import RunRecord
 from scenarios.spec.scenario import Scenario
 
@@ -162,11 +163,11 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         "lanes": lanes,
         "failures": rec.failures,
     }
-    tree = run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float)))
+    tree = units.rounded(run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float))))
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: its matchers and estimators replayed over {recording.path}\n" + tomli_w.dumps(scenario.resolved())
     )
-    tree = {"provenance": provenance.collect(), **tree}
+    tree = {"provenance": provenance.collect(), **tree, "units": units.block()}
     (tmp / "metrics.json").write_text(json.dumps(tree, indent=2) + "\n")
     for eid, poses in rec.estimates.items():
         files.write_tum(tmp / f"{eid}.tum", rec.scan_t, files.waterline(poses), geo.zero_ns)

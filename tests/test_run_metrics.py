@@ -878,7 +878,10 @@ def every_metric_tree() -> list[dict]:
     est[:10] = np.nan
     fixes, *_ = monitor_case()
     rec = run_record(truth, {"e": est}, {"m": matcher_track(truth)}, fixes=fixes)
-    rec.failures = [{"component": "estimator", "id": "e", "stamp": 2.5, "reason": "x"}, {"component": "matcher", "id": "m", "stamp": 2.6, "reason": "x"}]
+    rec.failures = [
+        {"component": "estimator", "id": "e", "stamp": 2.5, "reason": "x"},
+        {"component": "matcher", "id": "m", "stamp": 2.6, "reason": "x"},
+    ]
     run_info = {**dict.fromkeys(RUN_NUMBERS, 1.5), "duration_s": 2.0, "mover_points": {"median": 1.0, "p90": 2.0, "max": 3.0, "scans_with": 0.5}}
     windows = [win.Window(kind, 0.5, 1.0) for kind in win.KINDS]
     run = metrics.compute(rec, windows, run_info, vessel_log.metrics(vessel_log.VesselLog(), 3.0, 0.1))
@@ -910,7 +913,9 @@ def test_rounding_keeps_integers_flags_text_and_lists_and_rounds_floats_to_their
 
     tree = {
         "run": {"seed": 3, "t_start": 1974.7311226848155, "wall_s": 26.058935375, "failures": [{"stamp": 1.23456789}], "lanes": [["gicp"]]},
-        "estimators": {"e": {"ape": {"rmse": 1.61300133691, "max": -0.00000001}, "yaw": {"p95": 1.7612345}, "failed": False, "available": 0.99868421}},
+        "estimators": {
+            "e": {"ape": {"rmse": 1.61300133691, "max": -0.00000001}, "yaw": {"p95": 1.7612345}, "failed": False, "available": 0.99868421}
+        },
         "matchers": {"m": {"points": {"median": 10457.5}, "ms": {"p95": 46.4396536}, "hz": 33.6687991}},
         "vessel": {"outcome": "completed", "min_clearance_m": None},
     }

@@ -22,11 +22,14 @@ def _pick(columns: list[Column], *titles: str) -> list[Column]:
     return [by_title[t] for t in titles]
 
 
-ACCURACY = _pick(report.ACCURACY_COLUMNS, "APE rmse", "APE p95", "APE max", "RPE 100 m", "yaw p95 (°)")
-WINDOWS = _pick(report.DEGRADATION_COLUMNS, "blackout max", "NLOS max", "reacquisition max")
-MONITOR, *SCORES = _pick(report.DEGRADATION_COLUMNS, "monitor", "recall", "false alarms")
-MATCHER = _pick(report.MATCHER_COLUMNS, "success", "degenerate", "Hz", "ms p95", "points median", "APE aligned rmse", "RPE 100 m", "yaw p95 (°)")
-APE_P95, BLACKOUT, NLOS = ACCURACY[1], WINDOWS[0], WINDOWS[1]
+ACCURACY = _pick(report.ACCURACY_COLUMNS, "available", "APE rmse (m)", "APE p95 (m)", "APE max (m)", "RPE 100 m (m)", "yaw p95 (°)")
+WINDOWS = _pick(report.DEGRADATION_COLUMNS, "blackout max (m)", "NLOS max (m)", "reacquisition max (m)")
+MONITOR, *SCORES = _pick(report.DEGRADATION_COLUMNS, "monitor", "faulty fixes", "recall", "false alarms")
+MATCHER = _pick(
+    report.MATCHER_COLUMNS, "success", "degenerate", "Hz", "time p95 (ms)", "points (median)", "APE aligned rmse (m)", "RPE 100 m (m)", "yaw p95 (°)"
+)
+AVAILABLE, APE_P95, BLACKOUT, NLOS = ACCURACY[0], ACCURACY[2], WINDOWS[0], WINDOWS[1]
+FAULTY, RECALL, FALSE_ALARMS = SCORES
 SUCCESS, HZ, APE_ALIGNED = MATCHER[0], MATCHER[2], MATCHER[5]
 
 

@@ -395,3 +395,37 @@ def test_every_report_table_states_its_units(run_dir):
         following = text.split(block, 1)[1].lstrip("\n").split("\n\n")[0]
         note = following if following.startswith("*") else ""
         assert re.search(r"\((m|s|ms|°|count)\)|\b(metres|m\)|seconds|units?|share|%)", header + note), header
+
+
+def test_the_map_projects_the_worlds_parts_onto_the_water_plane():
+    """Flat faces fill their footprint, a wall's vertical sheet becomes its line, vegetation and far parts are left out."""
+    import trimesh
+    from matplotlib.figure import Figure
+
+    from scenarios.report import world_map
+    from tests.analytic_worlds import ORIGIN, box, straight_route, water
+    from worlds.materials import CONCRETE, SOIL
+    from worlds.world import Part, World
+
+    sheet = trimesh.Trimesh([[0, 10, -1], [100, 10, -1], [100, 10, 5], [0, 10, 5]], [[0, 1, 2], [0, 2, 3]])  # the plane y = 10
+    parts = [
+        water(),
+        Part("canal_wall", "wall", CONCRETE, sheet),
+        Part("bank", "bank", SOIL, box((100.0, 28.0, 2.0), (50.0, 26.0, 0.0))),
+        Part("trunks", "tree", SOIL, box((1.0, 1.0, 8.0), (50.0, 30.0, 4.0))),
+        Part("far", "building", CONCRETE, box((10.0, 10.0, 20.0), (5000.0, 5000.0, 10.0))),
+    ]
+    prints = {f.kind: f for f in world_map.footprints(World("test", parts, straight_route(), ORIGIN), (-20.0, 120.0, -50.0, 50.0))}
+    assert sorted(prints) == ["bank", "wall", "water"]
+    wall, bank = prints["wall"], prints["bank"]
+    assert not len(wall.fill) and len(wall.lines) == 2
+    np.testing.assert_allclose(np.sort(wall.lines[:, :, 0].ravel()), [0, 0, 100, 100])
+    np.testing.assert_allclose(wall.lines[:, :, 1], 10.0)
+    a, b, c = bank.fill[:, 0], bank.fill[:, 1], bank.fill[:, 2]
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+    assert area.sum() == pytest.approx(2 * 100.0 * 28.0)  # top and bottom faces, each the 100 m x 28 m footprint
+    assert bank.fill[:, :, 0].min() == 0.0 and bank.fill[:, :, 1].max() == 40.0 and not len(bank.lines)
+    ax = Figure().subplots()
+    legend = world_map.draw(ax, list(prints.values()))
+    assert [p.get_label() for p in legend] == ["water", "bank, ground", "wall (line), quay deck, lock"]
+    assert len(ax.collections) == 3  # water and bank filled, the wall a line

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from riverbench.atomic import atomic_path
-from scenarios.report import plots, vessel_plot
+from scenarios.report import plots, vessel_plot, world_map
 from scenarios.report.document import NULL, Cell, Column, Heading, Image, Table, Text, get, metres, num, ranked_table, share, to_html, to_markdown
 from scenarios.score import units
 
@@ -36,7 +36,7 @@ def write(run_dir: Path, scenario=None) -> None:
     run_dir = Path(run_dir)
     metrics = json.loads((run_dir / "metrics.json").read_text())
     info = scenario_info(run_dir, scenario)
-    series = plots.load(run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info))
+    series = plots.load(run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info), world_map.load(info))
     images = plots.write_all(series, run_dir / "plots")
     vessel_node = metrics.get("vessel", {})
     images |= vessel_plot.write(run_dir, float(vessel_node.get("clearance_threshold_m") or 0.0), vessel_node)

@@ -458,3 +458,11 @@ def test_closed_loop_runs_get_a_vessel_table_with_collisions_over_seeds(tmp_path
     text = (compare.write([tmp_path], tmp_path / "report").parent / "report.md").read_text().split("### Vessel")[1]
     assert row(text, "bridge (control.steer_on=ekf)")[1:4] == ["ekf", "0 of 3", "9.90 (9.50–10.20)"]
     assert row(text, "bridge (control.steer_on=gps_only)")[1:4] == ["gps_only", "**2 of 3**", "0.00 (0.00–4.00)"]
+
+
+def test_a_configuration_with_another_matcher_is_labelled_by_its_kind_not_its_parameters():
+    one = {"matchers": [{"id": "gicp", "kind": "gicp", "params": {"voxel_m": 1.0}}]}
+    two = {"matchers": [{"id": "gicp", "kind": "gicp", "params": {"voxel_m": 1.0}}, {"id": "bev", "kind": "bev3dof", "params": {"a": 1, "b": 2}}]}
+    flat = [groups.flatten(one), groups.flatten(two)]
+    assert groups.label_keys(flat) == ["matchers.bev.kind"]
+    assert [groups.label_text(f, ["matchers.bev.kind"]) for f in flat] == ["matchers.bev.kind=–", "matchers.bev.kind=bev3dof"]

@@ -28,8 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from riverbench.provenance import describe
-from scenarios.score.baseline import Baseline
 from scenarios.score import units
+from scenarios.score.baseline import Baseline
 from scenarios.score.metrics import Family, family_of
 
 NOISE_K = 2.0

@@ -36,7 +36,14 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity(
         "s",
         3,
-        ("run.sim_s", "run.wall_s", "run.duration_s", "estimators.*.windows.*.seconds", "estimators.*.windows.*.recover_s", "vessel.time_below_threshold_s"),
+        (
+            "run.sim_s",
+            "run.wall_s",
+            "run.duration_s",
+            "estimators.*.windows.*.seconds",
+            "estimators.*.windows.*.recover_s",
+            "vessel.time_below_threshold_s",
+        ),
     ),
     Quantity("ms per registered scan", 3, ("matchers.*.ms.*",)),
     Quantity("Hz", 3, ("matchers.*.hz",)),

@@ -157,7 +157,8 @@ def draw_map(run_dir: Path, tree: dict) -> bool:
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.grid(alpha=0.3)
-    ax.set_title(f"The recording in ENU about {tree['run']['recording']['origin_from']}: GPS fixes, estimates, matcher odometry", fontsize=10)
+    about = {"world": "the world's origin", "first fix": "the first fix"}.get(tree["run"]["recording"]["origin_from"], "its origin")
+    ax.set_title(f"The recording in ENU metres about {about}: GPS fixes, estimates, matcher odometry", fontsize=10)
     handles, names = ax.get_legend_handles_labels()
     ax.legend(handles + world, names + [str(p.get_label()) for p in world], loc="best", fontsize=9)
     with atomic_path(run_dir / MAP) as tmp:

@@ -31,13 +31,14 @@ Time: ROS time = the scenario's UTC epoch + the simulation stamp, in integer nan
 from __future__ import annotations
 
 import math
-from datetime import UTC, datetime, timedelta
+from datetime import datetime
 
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 from scipy.spatial.transform import Rotation
 
+from riverbench.unixtime import scenario_unix_ns
 from scenarios.export import dialect
 from sim.gnss_fix import GnssFix
 from sim.scan import Scan
@@ -122,7 +123,6 @@ POINT = np.dtype(
         "itemsize": 22,
     }
 )
-UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 def typestore() -> Typestore:
@@ -136,7 +136,7 @@ def typestore() -> Typestore:
 
 def ros_ns(epoch_utc: datetime, stamp: float) -> int:
     """ROS time in nanoseconds since the Unix epoch of simulation time `stamp`."""
-    return (epoch_utc - UNIX_EPOCH) // timedelta(microseconds=1) * 1000 + round(stamp * 1e9)
+    return scenario_unix_ns(epoch_utc, stamp)
 
 
 def header(store: Typestore, ns: int, frame_id: str):

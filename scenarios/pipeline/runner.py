@@ -25,12 +25,13 @@ import tomli_w
 
 from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
+from riverbench.unixtime import unix_ns
 from scenarios.pipeline import files
 from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.traffic_log import TrafficLog
-from scenarios.score import metrics, vessel_log
+from scenarios.score import metrics, units, vessel_log
 from scenarios.score import windows as win
 from scenarios.score.expectations import Outcome
 from scenarios.score.record import RunRecord
@@ -144,20 +145,21 @@ def _write(
 ) -> tuple[dict, list[Outcome]]:
     windows = win.find(rec.fixes, rec.injected, fix_period)
     tree = metrics.compute(rec, windows, run_info, vessel)
-    safe = metrics.json_safe(tree)
+    safe = units.rounded(metrics.json_safe(tree))  # expectations judge the numbers metrics.json shows
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]
-    safe = {"provenance": provenance.collect(), **safe}
+    safe = {"provenance": provenance.collect(), **safe, "units": units.block()}
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
         + tomli_w.dumps(scenario.resolved())
     )
     (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")
-    files.write_tum(tmp / "groundtruth.tum", rec.scan_t, rec.truth)
+    zero = unix_ns(scenario.gnss.epoch_utc)  # UNIX time of scenario time 0 (scenarios.pipeline.files: time, height)
+    files.write_tum(tmp / "groundtruth.tum", rec.scan_t, files.waterline(rec.truth), zero)
     for eid, poses in rec.estimates.items():
-        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)
+        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, files.waterline(poses), zero)
     for mid, track in rec.matches.items():
-        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
+        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, files.waterline(track.pose), zero)
     files.write_gps_csv(tmp / "gps.csv", rec)
     errors = {eid: metrics.horizontal_error(p, rec.truth) for eid, p in rec.estimates.items()}
     files.write_windows_csv(tmp / "windows.csv", windows, rec, errors)

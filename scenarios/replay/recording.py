@@ -17,12 +17,13 @@ import itertools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from datetime import UTC, datetime, timedelta
+from datetime import datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 import pymap3d
 
+from riverbench.unixtime import UNIX_EPOCH, unix_ns
 from scenarios.pipeline.feed import BadScan
 from scenarios.pipeline.stream import ScanEvent
 from sim.geodesy import LocalFrame
@@ -32,7 +33,6 @@ from sim.nmea.epochs import Tally
 DAY_NS = 86_400 * 10**9
 ORIGIN_RADIUS_M = 20_000.0
 REORDER_LAG_S = 1.0
-UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 @dataclass(frozen=True)
@@ -88,11 +88,6 @@ class Geo:
     def utc(self, stamp: float) -> datetime:
         """The UTC time of a replay stamp (to the microsecond)."""
         return UNIX_EPOCH + timedelta(microseconds=self.zero_ns // 1000 + round(stamp * 1e6))
-
-
-def unix_ns(when: datetime) -> int:
-    """Integer nanoseconds since the Unix epoch of an aware datetime."""
-    return (when - UNIX_EPOCH) // timedelta(microseconds=1) * 1000
 
 
 def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:

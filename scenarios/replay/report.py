@@ -9,40 +9,45 @@ what they report about themselves. A GNSS-only replay (no LiDAR) says so in its 
 from __future__ import annotations
 
 import json
+import tomllib
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from riverbench.atomic import atomic_path
-from scenarios.report import document, plots, run_report
+from scenarios.report import document, plots, run_report, world_map
 from scenarios.report.document import Cell, Column, Heading, Table, Text, get, metres, num, share
 
 MAP = "plots/map.png"
+WORLD_PAD_M = 30.0
+"""How far around the recording's fixes and tracks the world is drawn, plus a tenth of their span."""
 MAP_CAPTION = (
-    "The recording in the world's ENU frame: GPS fixes (grey: measured, brown: dead reckoning), each estimate, and each matcher's odometry (dashed)."
+    "The recording in the world's ENU frame over the scenario world's parts (when the recording lies on it): GPS fixes (grey: measured, "
+    "brown: dead reckoning), each estimate, and each matcher's odometry (dashed)."
 )
 ESTIMATOR_COLUMNS = [
     Column("available", get("available"), share, "high"),
     Column("trusted fixes", get("against_gps.trusted"), share, None),
-    Column("compared", get("against_gps.fixes"), lambda v: num(v, ".0f"), None),
-    Column("to GPS rmse", get("against_gps.rmse"), metres, None),
-    Column("to GPS median", get("against_gps.median"), metres, None),
-    Column("to GPS p95", get("against_gps.p95"), metres, None),
-    Column("to GPS max", get("against_gps.max"), metres, None),
+    Column("compared (fixes)", get("against_gps.fixes"), lambda v: num(v, ".0f"), None),
+    Column("to GPS rmse (m)", get("against_gps.rmse"), metres, None),
+    Column("to GPS median (m)", get("against_gps.median"), metres, None),
+    Column("to GPS p95 (m)", get("against_gps.p95"), metres, None),
+    Column("to GPS max (m)", get("against_gps.max"), metres, None),
 ]
 REFERENCE_COLUMNS = [
     Column("available", get("against_reference.available"), share, "high"),
-    Column("scored", get("against_reference.scored"), lambda v: num(v, ".0f"), None),
-    Column("APE rmse", get("against_reference.ape.rmse"), metres),
-    Column("APE median", get("against_reference.ape.median"), metres),
-    Column("APE p95", get("against_reference.ape.p95"), metres),
-    Column("APE max", get("against_reference.ape.max"), metres),
+    Column("scored (fixes)", get("against_reference.scored"), lambda v: num(v, ".0f"), None),
+    Column("APE rmse (m)", get("against_reference.ape.rmse"), metres),
+    Column("APE median (m)", get("against_reference.ape.median"), metres),
+    Column("APE p95 (m)", get("against_reference.ape.p95"), metres),
+    Column("APE max (m)", get("against_reference.ape.max"), metres),
     Column("blackouts", get("against_reference.blackout.count"), lambda v: num(v, ".0f"), None),
-    Column("blackout max", get("against_reference.blackout.max_error"), metres),
-    Column("blackout exit", get("against_reference.blackout.exit_error"), metres),
+    Column("blackout max (m)", get("against_reference.blackout.max_error"), metres),
+    Column("blackout exit (m)", get("against_reference.blackout.exit_error"), metres),
 ]
-MATCHER_COLUMNS = [c for c in run_report.MATCHER_COLUMNS if c.title in ("success", "gated", "Hz", "ms p95", "points median", "degenerate")]
+MATCHER_TITLES = ("success", "gated", "Hz", "time p95 (ms)", "points (median)", "degenerate")
+MATCHER_COLUMNS = [c for c in run_report.MATCHER_COLUMNS if c.title in MATCHER_TITLES]
 
 
 def write(run_dir: Path) -> None:
@@ -84,8 +89,9 @@ def build(tree: dict, images: dict[str, str]) -> list:
     matchers = tree.get("matchers", {})
     if matchers:
         note = (
-            "Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; degenerate: "
-            "usable matches with an unobserved direction."
+            "Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; Hz and time: "
+            "wall-clock rate and 95th-percentile time per registered scan; points: per scan; degenerate: usable matches with an "
+            "unobserved direction."
         )
         blocks += [Heading(2, "Scan matchers"), document.ranked_table("matcher", matchers, MATCHER_COLUMNS, labels(matchers), note)]
     return blocks
@@ -148,7 +154,7 @@ def gps(g: dict) -> list:
     return [
         Heading(2, "GPS"),
         Table(
-            ["fixes", "measured", "valid", "dead reckoning", "HDOP median"],
+            ["fixes (count)", "measured", "valid", "dead reckoning", "HDOP median"],
             [
                 [
                     Cell(str(g.get("fixes"))),
@@ -158,8 +164,24 @@ def gps(g: dict) -> list:
                     Cell(num(g.get("hdop_median"), ".2f")),
                 ]
             ],
+            "Shares of all fixes; HDOP is dimensionless.",
         ),
     ]
+
+
+def world_patches(ax, run_dir: Path, tree: dict, fixes: dict, tracks: dict) -> list:
+    """The scenario's world under the map when the replay's ENU frame is the world's (legend patches; none otherwise)."""
+    if tree["run"]["recording"].get("origin_from") != "world" or not (run_dir / "scenario.toml").exists():
+        return []
+    world = world_map.load(tomllib.loads((run_dir / "scenario.toml").read_text()))
+    x = np.concatenate([fixes.get("e", np.zeros(0)), *(t.x for t in tracks.values())])
+    y = np.concatenate([fixes.get("n", np.zeros(0)), *(t.y for t in tracks.values())])
+    keep = np.isfinite(x) & np.isfinite(y)
+    if world is None or not keep.any():
+        return []
+    pad = WORLD_PAD_M + 0.1 * max(np.ptp(x[keep]), np.ptp(y[keep]))
+    extent = (x[keep].min() - pad, x[keep].max() + pad, y[keep].min() - pad, y[keep].max() + pad)
+    return world_map.draw(ax, world_map.footprints(world, extent))
 
 
 def draw_map(run_dir: Path, tree: dict) -> bool:
@@ -170,6 +192,7 @@ def draw_map(run_dir: Path, tree: dict) -> bool:
         return False
     figure = Figure(figsize=(plots.WIDTH_IN, 7.0), layout="constrained")
     ax = figure.subplots()
+    world = world_patches(ax, run_dir, tree, fixes, tracks)
     for quality, (label, colour) in plots.QUALITY_STYLE.items():
         keep = fixes.get("quality", np.zeros(0)) == quality
         if keep.any():
@@ -182,7 +205,10 @@ def draw_map(run_dir: Path, tree: dict) -> bool:
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=9)
+    about = {"world": "the world's origin", "first fix": "the first fix"}.get(tree["run"]["recording"]["origin_from"], "its origin")
+    ax.set_title(f"The recording in ENU metres about {about}: GPS fixes, estimates, matcher odometry", fontsize=10)
+    handles, names = ax.get_legend_handles_labels()
+    ax.legend(handles + world, names + [str(p.get_label()) for p in world], loc="best", fontsize=9)
     with atomic_path(run_dir / MAP) as tmp:
         figure.savefig(tmp, format="png", dpi=plots.DPI)
     return True

@@ -13,7 +13,8 @@ the first scan, then moved as a whole onto the first pose any estimator reports 
 the matcher's first after it); without any estimate it stays chained from identity at the
 world origin. The run directory is written under a hidden name and renamed when complete:
 
-    scenario.toml  metrics.json (scenarios.replay.metrics)  <id>.tum per estimator and matcher
+    scenario.toml  metrics.json (scenarios.replay.metrics)  <id>.tum per estimator and matcher (UNIX time: the
+                   recording's own clock; at the waterline, as scenarios.pipeline.files writes a run's)
     gps.csv (every fix with each verdict)  gps.nmea (the recorded sentences, when there are any)
     report.md  report.html  plots/map.png
 """
@@ -50,6 +51,7 @@ from scenarios.replay import reference as reference_module
 from scenarios.replay.recording import Event, Place, RecordedFix, Recording
 from scenarios.replay.reference import Reference
 from scenarios.score import metrics as run_metrics
+from scenarios.score import units
 from scenarios.score.record import RunRecord
 from scenarios.spec.scenario import Scenario
 from sim.scan import Scan
@@ -209,19 +211,19 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         tree["reference"] = ref.tree()
         for eid, node in tree["estimators"].items():
             node["against_reference"] = reference_module.score(rec, eid, ref, antenna)
-    tree = run_metrics.json_safe(tree)
+    tree = units.rounded(run_metrics.json_safe(tree))
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: its matchers and estimators replayed over {recording.path}"
         + (" (GNSS-only: the estimators without their matchers)" if recording.gnss_only else "")
         + "\n"
         + tomli_w.dumps(scenario.resolved())
     )
-    tree = {"provenance": provenance.collect(), **tree}
+    tree = {"provenance": provenance.collect(), **tree, "units": units.block()}
     (tmp / "metrics.json").write_text(json.dumps(tree, indent=2) + "\n")
     for eid, poses in rec.estimates.items():
-        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)
+        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, files.waterline(poses), geo.zero_ns)
     for mid, track in rec.matches.items():
-        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
+        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, files.waterline(track.pose), geo.zero_ns)
     files.write_gps_csv(tmp / "gps.csv", rec, truth=False)
     return tree
 

@@ -6,7 +6,7 @@ LOOKAHEAD_SCANS ahead), then in time order each estimator gets `add_match(stamp,
 fix goes to every estimator's `add_fix`, which returns the monitor's verdict. A component that
 raises, or answers with something else than a 4x4 pose or a Verdict, is recorded as failed from
 that input on and the rest goes on. A scan the recording could not give (BadScan) is a recorded
-failure too.
+failure too. An observer (the live view), when given, is told of each scan and fix as it is recorded.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np
 
 from fusion.verdict import Verdict
 from scenarios.pipeline.matcher_pool import MatcherPool
+from scenarios.pipeline.observer import RunObserver
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.score.record import Recorder, nan_pose
 from scenarios.spec.scenario import Scenario
@@ -57,10 +58,12 @@ class Feed:
         base_pose: Callable[[float], np.ndarray],
         t_start: float,
         log_fix: Callable[[object], None] | None = None,
+        observer: RunObserver | None = None,
     ) -> None:
-        """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log)."""
+        """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
+        observer, when given, with each scan and fix as they are recorded."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
-        self.log_fix = log_fix
+        self.log_fix, self.observer = log_fix, observer
         self.feeds = {e.id: e.matcher for e in scenario.estimators}
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
@@ -141,7 +144,10 @@ class Feed:
             return checked_pose(est.pose)
 
         poses = self._each_estimator(step, event.stamp)
-        self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
+        truth, estimates = self.base_pose(event.stamp), {eid: poses.get(eid, nan_pose()) for eid in self.estimators}
+        self.recorder.scan(event.stamp, truth, results, estimates)
+        if self.observer is not None:
+            self.observer.scan(event, truth, estimates)
 
     def _fix(self, event) -> None:
         """One fix to every estimator, its verdicts into the record, then to log_fix."""
@@ -153,6 +159,8 @@ class Feed:
         )
         if self.log_fix is not None:
             self.log_fix(event)
+        if self.observer is not None:
+            self.observer.fix(fix, verdicts)
 
 
 def build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:

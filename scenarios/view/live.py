@@ -21,6 +21,7 @@ from scenarios.view.layout import TIMELINE, blueprint
 from scenarios.view.sink import ViewSink
 from scenarios.view.world_mesh import part_meshes
 from sim.gnss_fix import GnssFix
+from sim.trajectory import VesselPoses
 
 COLOUR_BY = ("height", "intensity")
 """What the scan's colour shows: height above the water (world z) or the simulated intensity."""
@@ -52,7 +53,7 @@ class LiveView:
             raise ValueError(f"--view-colour {colour_by!r}: use {' or '.join(COLOUR_BY)}")
         self.sink, self.rec, self.colour_by = sink, sink.rec, colour_by
         self._lut = (matplotlib.colormaps["turbo"](np.linspace(0.0, 1.0, 256))[:, :3] * 255).astype(np.uint8)
-        self._trajectory = None
+        self._trajectory: VesselPoses | None = None  # set by begin(), which the run calls first
         self._revolution_s = math.nan
         self._colours: dict[str, tuple[int, int, int]] = {}
 
@@ -114,11 +115,12 @@ class LiveView:
 
     def _world_points(self, event: ScanEvent) -> tuple[np.ndarray, np.ndarray]:
         """(N, 3) float32 world ENU points of the scan thinned to MAX_SCAN_POINTS, and the value its colour shows."""
+        assert self._trajectory is not None, "begin() first"
         points = event.scan.points
         step = max(1, math.ceil(len(points) / MAX_SCAN_POINTS))
         points = points[::step]
         knot_t = np.linspace(0.0, self._revolution_s, POSE_KNOTS + 1)
-        knots = self._trajectory.lidar_poses(event.stamp + knot_t)  # type: ignore[union-attr]
+        knots = self._trajectory.lidar_poses(event.stamp + knot_t)
         u = np.clip(points["time"].astype(np.float64) / self._revolution_s * POSE_KNOTS, 0.0, POSE_KNOTS - 1e-9)
         i = u.astype(np.intp)
         frac = (u - i)[:, None, None]

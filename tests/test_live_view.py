@@ -64,7 +64,7 @@ def test_recording_carries_world_scan_tracks_and_fixes_by_verdict(recorded):
     world = worlds.load(scenario.world, **scenario.world_params)
     assert {f"/world/{p.name}" for p in world.parts} | {"/world/route", "/vessel/hull"} <= set(rows)
     assert all(t is None for p in world.parts for t, _ in rows[f"/world/{p.name}"])  # the world is static, logged once
-    assert {"/scan", "/truth", "/vessel", "/errors/gps"} <= set(rows)
+    assert {"/scan", "/truth", "/vessel", "/follow", "/errors/gps"} <= set(rows)
     for e in scenario.estimators:
         assert {f"/estimators/{e.id}", f"/errors/{e.id}"} <= set(rows)
         assert f"/gps/{e.id}/trusted" in rows or f"/gps/{e.id}/refused" in rows

@@ -34,10 +34,12 @@ MAX_SCAN_POINTS = 10_000
 """Points of a scan in the view (every k-th point beyond): bounds what a scan costs the run and the recording."""
 POSE_KNOTS = 36
 """Poses per revolution between which a point's pose is interpolated (every 10 deg of azimuth, 2.8 ms at 10 Hz)."""
-SCAN_RADIUS_M = 0.08
-TRACK_RADIUS_M = 0.4
-FIX_RADIUS_M = 0.6
+TURBO_PART = (0.4, 1.0)
+"""The part of matplotlib's turbo colour map the scan uses: green to red, no blue to vanish on the water."""
+SCAN_RADIUS, TRACK_RADIUS, FIX_RADIUS = (rr.components.Radius.ui_points(px) for px in (2.5, 3.0, 4.0))
+"""Drawn sizes in screen points, whatever the zoom."""
 TRUTH_COLOUR = (255, 255, 255)
+ROUTE_COLOUR = (120, 120, 120)
 TRUSTED_COLOUR = (44, 160, 44)
 REFUSED_COLOUR = (214, 39, 40)
 GPS_ERROR_COLOUR = (160, 160, 160)
@@ -52,7 +54,7 @@ class LiveView:
         if colour_by not in COLOUR_BY:
             raise ValueError(f"--view-colour {colour_by!r}: use {' or '.join(COLOUR_BY)}")
         self.sink, self.rec, self.colour_by = sink, sink.rec, colour_by
-        self._lut = (matplotlib.colormaps["turbo"](np.linspace(0.0, 1.0, 256))[:, :3] * 255).astype(np.uint8)
+        self._lut = (matplotlib.colormaps["turbo"](np.linspace(*TURBO_PART, 256))[:, :3] * 255).astype(np.uint8)
         self._trajectory: VesselPoses | None = None  # set by begin(), which the run calls first
         self._revolution_s = math.nan
         self._colours: dict[str, tuple[int, int, int]] = {}
@@ -71,7 +73,7 @@ class LiveView:
                 static=True,
             )
         route = stack.world.route.xy
-        rec.log("world/route", rr.LineStrips3D([np.column_stack([route, np.zeros(len(route))])], colors=[(200, 200, 200)]), static=True)
+        rec.log("world/route", rr.LineStrips3D([np.column_stack([route, np.zeros(len(route))])], colors=[ROUTE_COLOUR]), static=True)
         lo, hi = stack.trajectory.hull.bounds
         rec.log("vessel/hull", rr.Boxes3D(centers=[(lo + hi) / 2], half_sizes=[(hi - lo) / 2], colors=[TRUTH_COLOUR]), static=True)
         self._colours = {e.id: ESTIMATOR_COLOURS[i % len(ESTIMATOR_COLOURS)] for i, e in enumerate(scenario.estimators)}
@@ -84,14 +86,16 @@ class LiveView:
         rec = self.rec
         rec.set_time(TIMELINE, duration=event.stamp)
         points, values = self._world_points(event)
-        rec.log("scan", rr.Points3D(points, colors=self._lut[self._colour_index(values)], radii=SCAN_RADIUS_M))
+        rec.log("scan", rr.Points3D(points, colors=self._lut[self._colour_index(values)], radii=SCAN_RADIUS))
         rec.log("vessel", rr.Transform3D(translation=truth[:3, 3], mat3x3=truth[:3, :3]))
-        rec.log("truth", rr.Points3D([truth[:3, 3]], colors=[TRUTH_COLOUR], radii=TRACK_RADIUS_M), _pose_values(truth))
+        heading = rr.RotationAxisAngle(axis=(0.0, 0.0, 1.0), radians=math.atan2(truth[1, 0], truth[0, 0]))
+        rec.log("follow", rr.Transform3D(translation=truth[:3, 3], rotation_axis_angle=heading))
+        rec.log("truth", rr.Points3D([truth[:3, 3]], colors=[TRUTH_COLOUR], radii=TRACK_RADIUS), _pose_values(truth))
         for eid, pose in estimates.items():
             if not np.isfinite(pose).all():
                 continue  # not initialised yet, or failed: nothing to draw
             colour = self._colours.get(eid, ESTIMATOR_COLOURS[0])
-            rec.log(f"estimators/{eid}", rr.Points3D([pose[:3, 3]], colors=[colour], radii=TRACK_RADIUS_M), _pose_values(pose))
+            rec.log(f"estimators/{eid}", rr.Points3D([pose[:3, 3]], colors=[colour], radii=TRACK_RADIUS), _pose_values(pose))
             rec.log(f"errors/{eid}", rr.Scalars(float(np.hypot(*(pose[:2, 3] - truth[:2, 3])))))
 
     def fix(self, fix: GnssFix, verdicts: dict[str, Verdict]) -> None:
@@ -104,7 +108,7 @@ class LiveView:
             trusted = bool(verdict.trusted)
             rec.log(
                 f"gps/{eid}/{'trusted' if trusted else 'refused'}",
-                rr.Points3D([fix.enu], colors=[TRUSTED_COLOUR if trusted else REFUSED_COLOUR], radii=FIX_RADIUS_M),
+                rr.Points3D([fix.enu], colors=[TRUSTED_COLOUR if trusted else REFUSED_COLOUR], radii=FIX_RADIUS),
                 rr.AnyValues(statistic=float(verdict.statistic), reason=str(verdict.reason)),
             )
         if fix.truth is not None and fix.quality == 1:

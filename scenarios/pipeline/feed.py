@@ -150,7 +150,7 @@ class Feed:
             self.observer.scan(event, truth, estimates)
 
     def _fix(self, event) -> None:
-        """One fix to every estimator, its verdicts into the record, then to log_fix."""
+        """One fix to every estimator, its verdicts into the record, then to log_fix and the observer."""
         fix = event.fix
         verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp)
         # a failed estimator raises no alarm: its fixes count as trusted with no statistic

@@ -176,21 +176,26 @@ def run(
         False, "--fast", help="run the scenario's short [fast] variant (what `suite --fast` runs); a scenario without one is an error"
     ),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    view: bool = typer.Option(False, "--view", help="stream the run to the rerun viewer as it happens (running, else spawned); riverbench[view]"),
+    view_save: Path = typer.Option(None, "--view-save", help="write the live view to this .rrd file (open: rerun FILE); riverbench[view]"),
+    view_colour: str = typer.Option("height", "--view-colour", help="colour the viewed scan by height or intensity"),
 ) -> None:
     """Run a scenario: write its run directory, print a summary; exit 1 when an expectation fails, 130/143 on
     Ctrl-C/SIGTERM (nothing written)."""
     import scenarios
     from scenarios.pipeline.progress import RunProgress
-    from scenarios.pipeline.runner import RunFailed, RunInterrupted
+    from scenarios.pipeline.runner import RunFailed, RunInterrupted, default_out_dir
     from scenarios.report.summary import run_table
     from scenarios.spec.library import load_fast
 
     with stoppable("run interrupted; nothing written", (RunInterrupted,)):
         with user_errors():
             spec = (load_fast if fast else scenarios.load)(scenario, set=set_, seed=seed)
+            out = out if out is not None else default_out_dir(spec)
+            observer = _live_view(view, view_save, view_colour, out) if view or view_save is not None else None
         try:
             with RunProgress(spec.name, console, quiet) as progress:
-                result = scenarios.run(spec, out, workers=workers, report=not no_report, progress=progress.update)
+                result = scenarios.run(spec, out, workers=workers, report=not no_report, progress=progress.update, observer=observer)
         except RunFailed as exc:
             errors.print(f"[bold red]run failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(1) from None
@@ -202,6 +207,24 @@ def run(
     target = result.report if result.report.exists() else result.out_dir
     console.print(f"{'all expectations pass' if result.passed else '[bold red]expectations failed[/]'}: {target}")
     raise typer.Exit(0 if result.passed else 1)
+
+
+def _live_view(view: bool, save: Path | None, colour: str, out: Path):
+    """The run's live view (scenarios.view): one line and exit 2 without the rerun SDK; one line when --view finds no viewer."""
+    from scenarios.view import import_rerun
+
+    import_rerun()
+    from scenarios.view.live import LiveView
+    from scenarios.view.sink import FALLBACK_NAME, ViewSink, ViewTarget
+
+    sink = ViewSink(ViewTarget(viewer=view, save=save))
+    observer = LiveView(sink, colour)
+    why = sink.connect()
+    if why is not None:
+        where = save if save is not None else out / FALLBACK_NAME
+        note = f"{why}; saving the view to {where} (open it with: rerun {where})"
+        errors.print(f"[bold yellow]no viewer:[/] {escape(note)}", highlight=False, soft_wrap=True)
+    return observer
 
 
 @app.command()

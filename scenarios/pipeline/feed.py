@@ -6,7 +6,7 @@ LOOKAHEAD_SCANS ahead), then in time order each estimator gets `add_match(stamp,
 fix goes to every estimator's `add_fix`, which returns the monitor's verdict. A component that
 raises, or answers with something else than a 4x4 pose or a Verdict, is recorded as failed from
 that input on and the rest goes on. A scan the recording could not give (BadScan) is a recorded
-failure too.
+failure too. An observer (the live view), when given, is told of each scan and fix as it is recorded.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import numpy as np
 
 from fusion.verdict import Verdict
 from scenarios.pipeline.matcher_pool import MatcherPool
+from scenarios.pipeline.observer import RunObserver
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.score.record import Recorder, nan_pose
 from scenarios.spec.scenario import Scenario
@@ -60,11 +61,13 @@ class Feed:
         t_start: float,
         log_fix: Callable[[object], None] | None = None,
         on_scan: Callable[[float], None] | None = None,
+        observer: RunObserver | None = None,
     ) -> None:
         """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
-        on_scan(stamp) once every estimator has a scan and before any later input (e.g. to read their poses and covariances)."""
+        on_scan(stamp) once every estimator has a scan and before any later input (e.g. to read their poses and covariances);
+        observer, when given, with each scan and fix as they are recorded (the live view)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
-        self.log_fix, self.on_scan = log_fix, on_scan
+        self.log_fix, self.on_scan, self.observer = log_fix, on_scan, observer
         self.feeds = {e.id: e.matcher for e in scenario.estimators}
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
@@ -159,12 +162,15 @@ class Feed:
             return checked_pose(est.pose)
 
         poses = self._each_estimator(step, event.stamp)
-        self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
+        truth, estimates = self.base_pose(event.stamp), {eid: poses.get(eid, nan_pose()) for eid in self.estimators}
+        self.recorder.scan(event.stamp, truth, results, estimates)
+        if self.observer is not None:
+            self.observer.scan(event, truth, estimates)
         if self.on_scan is not None:
             self.on_scan(event.stamp)
 
     def _fix(self, event) -> None:
-        """One fix to every estimator, its verdicts into the record, then to log_fix."""
+        """One fix to every estimator, its verdicts into the record, then to log_fix and the observer."""
         fix = event.fix
         verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp)
         # a failed estimator raises no alarm: its fixes count as trusted with no statistic
@@ -173,6 +179,8 @@ class Feed:
         )
         if self.log_fix is not None:
             self.log_fix(event)
+        if self.observer is not None:
+            self.observer.fix(fix, verdicts)
 
 
 def build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:

@@ -113,7 +113,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     recorder = stack.recorder()
     setups = matcher_setups(scenario)
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()), observer)
+        feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()), observer=observer)
         feed.drive(
             traffic_log.tap(vessel_run.events(feed)),
             lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),

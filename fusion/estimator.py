@@ -18,6 +18,8 @@ from riverbench.angles import wrap_angle
 from riverbench.samples import HeadingSample, ImuSamples
 from sim.gnss_fix import GnssFix
 
+EARTH_RATE = 7.292115e-5
+"""WGS-84 Earth rotation rate, rad/s (NIMA TR8350.2)."""
 UNOBSERVED_VAR = 1e6
 """Variance (m^2) given to a match direction that carries no information."""
 HEIGHT_WALK_M2_PER_S = 0.01
@@ -209,7 +211,8 @@ class Estimator:
             return
         f = accel.mean(axis=0)
         roll, pitch = math.atan2(f[1], f[2]), math.atan2(-f[0], math.hypot(f[1], f[2]))
-        rates = (math.sin(roll) * gyro[:, 1] + math.cos(roll) * gyro[:, 2]) / math.cos(pitch)
+        earth = EARTH_RATE * math.sin(math.radians(self.inertial.latitude_deg))
+        rates = (math.sin(roll) * gyro[:, 1] + math.cos(roll) * gyro[:, 2]) / math.cos(pitch) - earth
         # each sample stands for the period that ends at its stamp; only what lies after the filter's time is new
         starts = np.r_[
             self._imu_last if self._imu_last is not None else stamps[0] - (np.median(np.diff(stamps)) if len(stamps) > 1 else 0.0), stamps[:-1]

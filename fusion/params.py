@@ -155,6 +155,13 @@ class InertialParams(BaseModel):
     gyro_noise_dps: float | None = Field(
         None, gt=0, description="gyro white noise density, deg/s/sqrt(Hz) [None: the density the IMU samples state, the datasheet's]"
     )
+    latitude_deg: float = Field(
+        42.3539,
+        ge=-90,
+        le=90,
+        description="latitude the boat runs at, deg: the Earth's rate about the vertical there (15.04 sin(lat) deg/h) is taken off "
+        "the gyro's yaw rate, as an AHRS does [42.3539: the worlds' origin on the Charles River]",
+    )
     gyro_bias_sigma_dps: float = Field(
         1.0, gt=0, description="initial 1-sigma of the yaw-rate bias, deg/s [1.0: a consumer MEMS gyro's zero-rate offset, BMI088 +-1 deg/s]"
     )

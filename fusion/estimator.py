@@ -52,13 +52,15 @@ class Estimator:
         self._height_var = math.inf
         sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)
         self._default_odom_cov = np.diag([sxy**2, sxy**2, sxy**2, syaw**2, syaw**2, syaw**2])
+        self.inertial: InertialParams = getattr(params, "inertial", None) or InertialParams()
+        self.uses_imu = "imu" in params.sensors
         fxy, fyaw = params.odom_floor_sigma_m, math.radians(params.odom_floor_sigma_yaw_deg)
+        if self.uses_imu:
+            fyaw = math.radians(self.inertial.odom_floor_sigma_yaw_deg)
         self._odom_floor = np.diag([fxy**2, fxy**2, fyaw**2])
         self._refused_since: float | None = None  # first refused fix of an unbroken refused run
         self._ref_stamp: float | None = None
         self._last_measured: float | None = None
-        self.inertial: InertialParams = getattr(params, "inertial", None) or InertialParams()
-        self.uses_imu = "imu" in params.sensors
         self._gyro_rate: float | None = None  # the latest measured yaw rate (rad/s): yaw follows the gyro once it is set
         self._gyro_noise = 0.0  # its white noise density, rad/s/sqrt(Hz)
         self._imu_last: float | None = None

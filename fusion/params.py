@@ -171,6 +171,14 @@ class InertialParams(BaseModel):
         description="random walk of the yaw-rate bias in the filter, deg/h/sqrt(h) [60: follows an in-run bias of a few deg/h "
         "wandering on a minute scale, the MTi-630's, and the Earth's 10 deg/h about the vertical, which the bias also takes up]",
     )
+    odom_floor_sigma_yaw_deg: float = Field(
+        0.02,
+        ge=0,
+        description="with an IMU, the per-scan yaw noise added to every match covariance instead of the estimator's "
+        "odom_floor_sigma_yaw_deg, deg [0.02: the match's yaw now mostly tells the gyro's bias; at the 0.2 deg floor "
+        "(0.63 deg/sqrt(s)) a bias under ~30 deg/h stays hidden for a quarter of an hour and canal_lock's ekf with the "
+        "MTi-630 drifted 7 deg through its GPS-less second half (benchmarks/inertial.py)]",
+    )
     particle_yaw_walk_dps: float = Field(
         0.3,
         ge=0,

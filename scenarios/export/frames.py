@@ -133,6 +133,8 @@ def _frames(events: Iterator, trajectory, created: Callable[[Frame], None]) -> I
     current: Frame | None = None
     pending: list[GnssFix] = []  # fixes before the first scan go with it
     for event in events:
+        if not hasattr(event, "scan") and not hasattr(event, "fix"):
+            continue  # IMU and compass outputs are not exported yet
         if isinstance(event, ScanEvent):
             if current is not None:
                 yield current

@@ -20,6 +20,7 @@ from typing import TextIO
 import numpy as np
 
 from fusion.verdict import Verdict
+from scenarios.pipeline.inertial import HeadingEvent, ImuEvent
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.observer import RunObserver
 from scenarios.pipeline.stream import ScanEvent
@@ -68,7 +69,8 @@ class Feed:
         observer, when given, with each scan and fix as they are recorded (the live view)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
         self.log_fix, self.on_scan, self.observer = log_fix, on_scan, observer
-        self.feeds = {e.id: e.matcher for e in scenario.estimators}
+        self.sensors = {e.id: set(e.sensors_used) for e in scenario.estimators}
+        self.feeds = {e.id: e.matcher if "odometry" in self.sensors[e.id] else None for e in scenario.estimators}
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
         self.queue: deque = deque()
@@ -133,15 +135,26 @@ class Feed:
             if isinstance(event, ScanEvent):
                 self._scan(event, *self.pool.collect())
             else:
-                self._fix(event)
+                self._other(event)
         while self.queue and not isinstance(self.queue[0], ScanEvent):
-            self._fix(self.queue.popleft())
+            self._other(self.queue.popleft())
 
-    def _each_estimator(self, call: Callable[[str, object], object], stamp: float) -> dict:
-        """call(id, estimator) for every live estimator; one that raises is failed from here on."""
+    def _other(self, event) -> None:
+        """A fix, a batch of IMU samples or a compass heading to the estimators fed that sensor."""
+        if isinstance(event, ImuEvent):
+            self._each_estimator(lambda eid, est: est.add_imu(event.samples), event.stamp, "imu")
+        elif isinstance(event, HeadingEvent):
+            used = self._each_estimator(lambda eid, est: bool(est.add_heading(event.sample)), event.stamp, "compass")
+            users = [eid for eid in self.estimators if "compass" in self.sensors[eid]]
+            self.recorder.heading(event.stamp, event.sample.yaw, event.truth_yaw, {eid: used.get(eid, False) for eid in users})
+        else:
+            self._fix(event)
+
+    def _each_estimator(self, call: Callable[[str, object], object], stamp: float, sensor: str | None = None) -> dict:
+        """call(id, estimator) for every live estimator (fed `sensor`, when given); one that raises is failed from here on."""
         out = {}
         for eid, est in self.estimators.items():
-            if eid in self.dead:
+            if eid in self.dead or (sensor is not None and sensor not in self.sensors[eid]):
                 continue
             try:
                 out[eid] = call(eid, est)
@@ -172,8 +185,8 @@ class Feed:
     def _fix(self, event) -> None:
         """One fix to every estimator, its verdicts into the record, then to log_fix and the observer."""
         fix = event.fix
-        verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp)
-        # a failed estimator raises no alarm: its fixes count as trusted with no statistic
+        verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp, "gnss")
+        # a failed estimator (or one not fed GPS) raises no alarm: its fixes count as trusted with no statistic
         self.recorder.fix(
             fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan) for eid in self.estimators}
         )

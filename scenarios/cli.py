@@ -578,6 +578,7 @@ def replay(
     out: Path = typer.Option(None, help="run directory (default runs/replay-<name>-<UTC time>/)"),
     lidar_topic: str = typer.Option(None, help="the PointCloud2 topic (default: the only one)"),
     gps_topic: str = typer.Option(None, help="the NMEA Sentence or NavSatFix topic (default: the only one)"),
+    imu_topic: str = typer.Option(None, help="the sensor_msgs/Imu topic, read when an estimator is fed the IMU (default: the only one)"),
     nmea: Path = typer.Option(None, help="an NMEA log whose fixes replace the recording's own GPS (a capture's GPRMC, a bag's GPS topic)"),
     reference: Path = typer.Option(
         None, help="score the estimators against this reference: a TUM file, an RTK receiver's NMEA log (quality 4/5 fixes) or a GPX track"
@@ -605,6 +606,7 @@ def replay(
                     out,
                     lidar_topic=lidar_topic,
                     gps_topic=gps_topic,
+                    imu_topic=imu_topic,
                     nmea=nmea,
                     reference=reference,
                     workers=workers,

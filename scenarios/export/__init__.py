@@ -8,7 +8,8 @@ Formats (see each module for the exact layout):
     ply    directory: a binary PLY per scan (same fields), times.txt, poses.txt (pointfiles.py)
     pcap   file: the HDL-32E's UDP data packets and GPRMC position packets, as the sensor streams them (pcap.py)
     rosbag2 directory: a rosbag2 bag, sqlite3 storage: PointCloud2, NavSatFix, NMEA, the mounts on /tf_static, truth
-           and each estimator's output as nav_msgs/Odometry (rosbag.py; the estimators run during the export)
+           and each estimator's output as nav_msgs/Odometry (rosbag.py; the estimators run during the export); Imu and
+           MagneticField when the scenario simulates an IMU and a compass
     mcap   directory: the same rosbag2 bag, MCAP storage (rosbag.py)
 
 Frames are simulated and written one at a time; the output appears at `out` only when complete.

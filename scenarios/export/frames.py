@@ -16,9 +16,11 @@ from datetime import datetime
 
 import numpy as np
 
+from riverbench.samples import HeadingSample, ImuSamples
 from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.assembly import recorder as make_recorder
 from scenarios.pipeline.feed import Feed
+from scenarios.pipeline.inertial import HeadingEvent, ImuEvent
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.pipeline.vessel_run import VesselRun
@@ -41,7 +43,8 @@ class Frame:
     """One revolution: the scan (points in the lidar frame at their firing times, as the sensor reports
     them), the true poses world<-base_link and world<-lidar at its stamp, the fixes with
     stamp in [this scan's stamp, the next scan's stamp), and, when the stream runs the estimators,
-    each initialised estimator's output at this scan by id (in the scenario's order)."""
+    each initialised estimator's output at this scan by id (in the scenario's order), and, when the scenario simulates
+    them, the IMU's batches and the compass's outputs that came after the scan (before the first scan: with it)."""
 
     index: int
     scan: Scan
@@ -49,6 +52,8 @@ class Frame:
     lidar_pose: np.ndarray
     fixes: list[GnssFix] = field(default_factory=list)
     estimates: dict[str, Estimate] = field(default_factory=dict)
+    imu: list[ImuSamples] = field(default_factory=list)
+    headings: list[HeadingSample] = field(default_factory=list)
 
     @property
     def stamp(self) -> float:
@@ -70,6 +75,19 @@ class StreamInfo:
     mount: np.ndarray
     antenna_offset_m: tuple[float, float, float]
     estimators: tuple[str, ...] = ()
+    inertial: InertialInfo | None = None
+
+
+@dataclass(frozen=True)
+class InertialInfo:
+    """The simulated IMU (and compass) as a driver describes them: rate, datasheet white-noise densities, the IMU's
+    position on base_link (its axes are base_link's, sim.imu) and the magnetometer's noise (None: no compass)."""
+
+    rate_hz: float
+    gyro_noise: float
+    accel_noise: float
+    lever_m: tuple[float, float, float]
+    compass_noise_ut: float | None = None
 
 
 def open_stream(scenario: Scenario, estimates: bool = False) -> tuple[StreamInfo, Iterator[Frame]]:
@@ -95,10 +113,19 @@ def open_stream(scenario: Scenario, estimates: bool = False) -> tuple[StreamInfo
         run.trajectory.mount.copy(),
         tuple(scenario.gnss.antenna_offset_m),
         tuple(e.id for e in scenario.estimators) if estimates else (),
+        inertial_info(scenario, run),
     )
     if run.loop is None and not estimates:
         return info, _frames(run.events(None), run.trajectory, lambda frame: None)
     return info, _estimated_frames(scenario, run, t_start, estimates)
+
+
+def inertial_info(scenario: Scenario, run: VesselRun) -> InertialInfo | None:
+    """What the IMU's and compass's topics need, when the scenario simulates an IMU (an estimator is fed it)."""
+    if run.imu is None or scenario.imu is None:
+        return None
+    compass = scenario.compass.noise_ut if scenario.compass is not None and run.compass is not None else None
+    return InertialInfo(scenario.imu.rate_hz, run.imu.gyro_noise_density, run.imu.accel_noise_density, tuple(scenario.imu.lever_m), compass)
 
 
 def _estimated_frames(scenario: Scenario, run: VesselRun, t_start: float, estimates: bool) -> Iterator[Frame]:
@@ -131,20 +158,22 @@ def _frames(events: Iterator, trajectory, created: Callable[[Frame], None]) -> I
     """Group the time-ordered events into frames: each scan with the fixes up to the next scan; created(frame) as each
     frame is made, and a frame is yielded only once the next scan's event (or the end) has come."""
     current: Frame | None = None
-    pending: list[GnssFix] = []  # fixes before the first scan go with it
+    pending: list[GnssFix] = []  # fixes, IMU batches and headings before the first scan go with it
+    imu: list[ImuSamples] = []
+    headings: list[HeadingSample] = []
     for event in events:
-        if not hasattr(event, "scan") and not hasattr(event, "fix"):
-            continue  # IMU and compass outputs are not exported yet
         if isinstance(event, ScanEvent):
             if current is not None:
                 yield current
             index = 0 if current is None else current.index + 1
-            current = Frame(index, event.scan, trajectory.pose(event.stamp), trajectory.lidar_pose(event.stamp), pending)
+            current = Frame(index, event.scan, trajectory.pose(event.stamp), trajectory.lidar_pose(event.stamp), pending, imu=imu, headings=headings)
             created(current)
-            pending = []
-        elif current is None:
-            pending.append(event.fix)
-        else:
-            current.fixes.append(event.fix)
+            pending, imu, headings = [], [], []
+        elif isinstance(event, ImuEvent):
+            (imu if current is None else current.imu).append(event.samples)
+        elif isinstance(event, HeadingEvent):
+            (headings if current is None else current.headings).append(event.sample)
+        elif hasattr(event, "fix"):
+            (pending if current is None else current.fixes).append(event.fix)
     if current is not None:
         yield current

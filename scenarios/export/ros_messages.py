@@ -24,6 +24,15 @@
   STATUS_NO_FIX and the rest left at zero, as the driver leaves them. What the receiver does not
   report (climb, gdop, tdop, the error estimates) is NaN; the covariance is not filled (UNKNOWN),
   as the driver's. It carries the DOPs NavSatFix cannot.
+- Imu, frame `imu_link`: as xsens_mti_driver's imupublisher.h lays it out (xsenssupport/
+  Xsens_MTi_ROS_Driver_and_Ntrip_Client, e2f611d): angular velocity rad/s and linear acceleration
+  m/s^2 (specific force: +g up at rest) in the IMU's axes, covariances diagonal; the simulated IMU
+  has no AHRS orientation, so orientation_covariance[0] = -1 (the driver's "not available" and
+  sensor_msgs/Imu's "no orientation estimate") and the orientation is the identity. The variances
+  are the discrete white noise of the datasheet density N at rate f: N^2 f (Kalibr's IMU noise model,
+  sigma_d = sigma / sqrt(dt); the sim draws it so, sim.sensor_noise).
+- MagneticField, frame `imu_link`: the magnetometer's field in tesla as sensor_msgs/MagneticField
+  wants (the Xsens driver writes its normalised units instead), covariance diagonal (noise)^2.
 - TFMessage of TransformStamped; nav_msgs/Odometry (pose and its covariance; twist not given, zero).
 Time: ROS time = the scenario's UTC epoch + the simulation stamp, in integer nanoseconds.
 """
@@ -45,6 +54,8 @@ from sim.scan import Scan
 
 LIDAR_FRAME = "velodyne"
 GPS_FRAME = "gps"
+IMU_FRAME = "imu_link"
+"""xsens_mti_driver's default frame_id (param/xsens_mti_node.yaml, xsenssupport/Xsens_MTi_ROS_Driver_and_Ntrip_Client e2f611d)."""
 BASE_FRAME = "base_link"
 MAP_FRAME = "map"
 SENTENCE_MSG = "std_msgs/Header header\nstring sentence\n"
@@ -274,4 +285,39 @@ def odometry(store: Typestore, ns: int, pose: np.ndarray, child: str, covariance
         twist=types["geometry_msgs/msg/TwistWithCovariance"](
             twist=types["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
         ),
+    )
+
+
+def vector3(store: Typestore, xyz) -> object:
+    """geometry_msgs/Vector3 of three numbers."""
+    x, y, z = (float(v) for v in xyz)
+    return store.types["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
+
+
+def diagonal(variance: float) -> np.ndarray:
+    """A 3x3 row-major covariance with `variance` on its diagonal."""
+    return np.diag(np.full(3, float(variance))).ravel()
+
+
+def imu(store: Typestore, ns: int, gyro, accel, gyro_variance: float, accel_variance: float):
+    """sensor_msgs/Imu of one sample without orientation (see the module docstring)."""
+    no_orientation = np.zeros(9)
+    no_orientation[0] = -1.0
+    return store.types["sensor_msgs/msg/Imu"](
+        header=header(store, ns, IMU_FRAME),
+        orientation=store.types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=no_orientation,
+        angular_velocity=vector3(store, gyro),
+        angular_velocity_covariance=diagonal(gyro_variance),
+        linear_acceleration=vector3(store, accel),
+        linear_acceleration_covariance=diagonal(accel_variance),
+    )
+
+
+def magnetic_field(store: Typestore, ns: int, field_ut, variance_t2: float):
+    """sensor_msgs/MagneticField of one magnetometer output (field in microtesla -> tesla)."""
+    return store.types["sensor_msgs/msg/MagneticField"](
+        header=header(store, ns, IMU_FRAME),
+        magnetic_field=vector3(store, np.asarray(field_ut, dtype=float) * 1e-6),
+        magnetic_field_covariance=diagonal(variance_t2),
     )

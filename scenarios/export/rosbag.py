@@ -11,6 +11,10 @@ Topics (messages detailed in ros_messages.py, the drivers' conventions in dialec
     /gps/extended_fix       gps_msgs/GPSFix, one per fix, frame gps (gpsd_client): the DOPs and satellites NavSatFix lacks
     /tf_static              tf2_msgs/TFMessage, once at the stream's start: the boat's sensor mounts, base_link -> velodyne
                             (the lidar mount) and base_link -> gps (the antenna offset); offered QoS transient_local (latched)
+    /imu/data               sensor_msgs/Imu, one per IMU sample, frame imu_link (xsens_mti_driver's topic and frame), only when an
+                            estimator is fed the IMU (the scenario simulates one); its mount base_link -> imu_link on /tf_static
+    /imu/mag                sensor_msgs/MagneticField, one per compass output, frame imu_link (xsens_mti_driver), tesla; only when
+                            an estimator is fed the compass
     /ground_truth/odom      nav_msgs/Odometry map -> base_link, the true pose at each scan's stamp, covariance zero (exact)
     /ground_truth/tf        tf2_msgs/TFMessage map -> base_link, the same pose, for viewers only: Foxglove takes transforms
                             from every TFMessage topic, ROS tf2 listens on /tf and /tf_static only
@@ -24,8 +28,7 @@ chunk closed: a chunk per revolution), so memory stays flat. Read with rosbags' 
 `kiss_icp_pipeline <out>`, evo (`evo_traj bag2 <out> /ground_truth/odom /riverbench/ekf/odom`), or
 Foxglove with docs/foxglove/riverbench_layout.json.
 
-A new sensor (an IMU) adds its topic to `topics`, its messages to `frame_messages` and its mount
-to `mounts`.
+A new sensor adds its topic to `topics`, its messages to `frame_messages` and its mount to `mounts`.
 """
 
 from __future__ import annotations
@@ -51,6 +54,8 @@ EXTENDED_FIX_TOPIC = "/gps/extended_fix"
 STATIC_TF_TOPIC = "/tf_static"
 TRUTH_TOPIC = "/ground_truth/odom"
 TRUTH_TF_TOPIC = "/ground_truth/tf"
+IMU_TOPIC = "/imu/data"
+MAG_TOPIC = "/imu/mag"
 
 
 def offered(durability: QosDurability) -> list[Qos]:
@@ -83,8 +88,18 @@ def topics(info: StreamInfo) -> list[Topic]:
         Topic(STATIC_TF_TOPIC, "tf2_msgs/msg/TFMessage", offered(QosDurability.TRANSIENT_LOCAL)),
         Topic(TRUTH_TOPIC, "nav_msgs/msg/Odometry", volatile),
         Topic(TRUTH_TF_TOPIC, "tf2_msgs/msg/TFMessage", volatile),
+        *inertial_topics(info),
         *(Topic(estimate_topic(eid), "nav_msgs/msg/Odometry", volatile) for eid in info.estimators),
     ]
+
+
+def inertial_topics(info: StreamInfo) -> list[Topic]:
+    """The IMU's and the compass's topics, when the stream has them."""
+    volatile = offered(QosDurability.VOLATILE)
+    if info.inertial is None:
+        return []
+    mag = [Topic(MAG_TOPIC, "sensor_msgs/msg/MagneticField", volatile)] if info.inertial.compass_noise_ut is not None else []
+    return [Topic(IMU_TOPIC, "sensor_msgs/msg/Imu", volatile), *mag]
 
 
 def write_sqlite3(info: StreamInfo, frames: Iterable[Frame], out: Path) -> dict[str, int]:
@@ -120,10 +135,16 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
 
 
 def mounts(info: StreamInfo) -> list[tuple[str, np.ndarray]]:
-    """The boat's fixed sensor frames, (child frame, 4x4 pose base_link<-child): the lidar mount and the antenna offset."""
+    """The boat's fixed sensor frames, (child frame, 4x4 pose base_link<-child): the lidar mount, the antenna offset and,
+    with an IMU, its position (axes base_link's, sim.imu)."""
     antenna = np.eye(4)
     antenna[:3, 3] = info.antenna_offset_m
-    return [(msgs.LIDAR_FRAME, info.mount), (msgs.GPS_FRAME, antenna)]
+    out = [(msgs.LIDAR_FRAME, info.mount), (msgs.GPS_FRAME, antenna)]
+    if info.inertial is not None:
+        imu = np.eye(4)
+        imu[:3, 3] = info.inertial.lever_m
+        out.append((msgs.IMU_FRAME, imu))
+    return out
 
 
 def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, object]]:
@@ -152,7 +173,26 @@ def frame_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tup
             (EXTENDED_FIX_TOPIC, t, msgs.gps_fix(store, t, fix)),
             *((NMEA_TOPIC, t, s) for s in msgs.sentences(store, t, fix)),
         ]
-    return sorted(scan + gnss, key=lambda message: message[1])
+    return sorted(scan + gnss + inertial_messages(store, info, frame), key=lambda message: message[1])
+
+
+def inertial_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
+    """The frame's IMU samples on /imu/data and compass outputs on /imu/mag, each at its stamp."""
+    if info.inertial is None:
+        return []
+    rate = info.inertial.rate_hz
+    gyro_var, accel_var = info.inertial.gyro_noise**2 * rate, info.inertial.accel_noise**2 * rate
+    out = []
+    for batch in frame.imu:
+        for stamp, gyro, accel in zip(batch.stamp, batch.gyro, batch.accel):
+            t = msgs.ros_ns(info.epoch_utc, float(stamp))
+            out.append((IMU_TOPIC, t, msgs.imu(store, t, gyro, accel, gyro_var, accel_var)))
+    if info.inertial.compass_noise_ut is not None:
+        variance = (info.inertial.compass_noise_ut * 1e-6) ** 2
+        for heading in frame.headings:
+            t = msgs.ros_ns(info.epoch_utc, heading.stamp)
+            out.append((MAG_TOPIC, t, msgs.magnetic_field(store, t, heading.field_ut, variance)))
+    return out
 
 
 def streaming(writer: Writer, storage: StoragePlugin) -> Callable[[], None]:

@@ -6,7 +6,9 @@ one-line error listing them); a bag without any is replayed on its GPS alone (GN
 the only nmea_msgs/msg/Sentence topic (the receiver's own sentences, with its satellites, C/N0 and
 dead-reckoning quality), else the only sensor_msgs/msg/NavSatFix topic, or the one `gps_topic`
 names (either type). With NMEA, the only NavSatFix topic and the only gps_msgs/msg/GPSFix topic, if
-any, refine its epochs (scenarios.replay.fixes). Every event is stamped with its message's header
+any, refine its epochs (scenarios.replay.fixes). When the scenario feeds an estimator the IMU: the only
+sensor_msgs/msg/Imu topic, or the one `imu_topic` names, read in base_link by its /tf_static mount
+(scenarios.replay.imu; a bag without an Imu topic replays without it). Every event is stamped with its message's header
 stamp (see scenarios.replay.recording for the time base and the ordering; scenarios.replay.clouds
 and .fixes for the fields).
 """
@@ -14,6 +16,7 @@ and .fixes for the fields).
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -24,6 +27,7 @@ from scenarios.export.ros_messages import typestore
 from scenarios.pipeline.feed import BadScan
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import clouds, fixes
+from scenarios.replay import imu as imu_module
 from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, LogStats, Place, RecordedFix, Recording, TimeOrder
 from sim.nmea.epochs import Line, Splitter, assemble
 
@@ -31,9 +35,13 @@ CLOUD = "sensor_msgs/msg/PointCloud2"
 SENTENCE = "nmea_msgs/msg/Sentence"
 NAVSAT = "sensor_msgs/msg/NavSatFix"
 GPSFIX = "gps_msgs/msg/GPSFix"
+IMU = "sensor_msgs/msg/Imu"
+TF_STATIC = "/tf_static"
+RATE_PROBE = 50
+"""Imu messages whose header stamps give the IMU's rate (the median interval)."""
 
 
-def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_topic: str | None = None) -> Recording:
+def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_topic: str | None = None, imu_topic: str | None = None) -> Recording:
     """Open the bag, pick its topics and fix its time base and ENU origin; ValueError (one line) when it cannot be replayed."""
     path = Path(path)
     with opened(path) as reader:
@@ -49,9 +57,43 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
         geo = Geo.choose(place, reader.start_time, first_position(reader, gps, place))
         span = (geo.seconds(reader.start_time), geo.seconds(reader.end_time))
         kind = "rosbag2" if reader.is2 else "ROS 1 bag"
+        imu = imu_mount(reader, path, types, place, imu_topic)
     source = gps + (f" (positions and DOPs refined by {' and '.join(refine)})" if refine else "")
     stats = LogStats() if types[gps] == SENTENCE else None
-    return Recording(path, kind, lidar, source, geo, *span, events=lambda: events(path, lidar, gps, refine, geo, stats), nmea=stats)
+    return Recording(
+        path,
+        kind,
+        lidar,
+        source,
+        geo,
+        *span,
+        events=lambda: imu_module.batched(events(path, lidar, gps, refine, geo, stats, imu)),
+        nmea=stats,
+        imu_source=imu[1].source if imu else "",
+    )
+
+
+def imu_mount(reader: AnyReader, path: Path, types: dict[str, str], place: Place, named: str | None) -> tuple[str, imu_module.ImuMount] | None:
+    """(topic, mount) of the bag's IMU when the scenario feeds one (or `named` asks for it) and the bag has one; else None."""
+    if named is None and (place.imu_noise is None or IMU not in types.values()):
+        return None
+    topic = pick(path, types, (IMU,), named, "--imu-topic")
+    connections = [c for c in reader.connections if c.topic == topic]
+    first, stamps = None, []
+    for connection, _, raw in reader.messages(connections=connections):
+        msg = reader.deserialize(raw, connection.msgtype)
+        first = first or msg
+        stamps.append(header_ns(msg))
+        if len(stamps) > RATE_PROBE:
+            break
+    if first is None:
+        raise ValueError(f"{path}: topic {topic} holds no Imu message")
+    steps = [b - a for a, b in zip(stamps, stamps[1:]) if b > a]
+    rate_hz = 1e9 / statistics.median(steps) if steps else math.nan
+    static = [c for c in reader.connections if c.topic == TF_STATIC]
+    tf = imu_module.transforms(reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=static)) if static else None
+    noise = place.imu_noise if place.imu_noise is not None else (math.nan, math.nan)
+    return topic, imu_module.mount(path, topic, first.header.frame_id, tf, noise, rate_hz)
 
 
 @contextmanager
@@ -112,19 +154,24 @@ def header_ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
-def events(path: Path, lidar: str, gps: str, refine: tuple[str, ...], geo: Geo, stats: LogStats | None) -> Iterator[Event]:
-    """Scans, fixes and unreadable scans in time order, read lazily (NMEA lines and epochs counted into `stats`)."""
+def events(
+    path: Path, lidar: str, gps: str, refine: tuple[str, ...], geo: Geo, stats: LogStats | None, imu: tuple[str, imu_module.ImuMount] | None = None
+) -> Iterator[Event | imu_module.ImuReading]:
+    """Scans, fixes, unreadable scans and IMU readings in time order, read lazily (NMEA lines and epochs counted into `stats`)."""
     order = TimeOrder()
     precise: dict[int, dict[str, object]] = {}  # header stamp -> message type -> the refining message
     epochs = Splitter(stats.tally if stats is not None else None)
     with opened(path) as reader:
-        connections = [c for c in reader.connections if c.topic in (lidar, gps, *refine)]
+        imu_topic = imu[0] if imu else ""
+        connections = [c for c in reader.connections if c.topic in (lidar, gps, imu_topic, *refine)]
         for connection, log_ns, raw in reader.messages(connections=connections):
             if lidar and connection.topic == lidar:
                 order.add(scan_event(reader, connection.msgtype, raw, lidar, geo.seconds(log_ns), geo))
                 continue
             msg = reader.deserialize(raw, connection.msgtype)
-            if connection.topic in refine:
+            if imu and connection.topic == imu_topic:
+                order.add(imu_module.reading(msg, geo.seconds(header_ns(msg)), imu[1]))
+            elif connection.topic in refine:
                 precise.setdefault(header_ns(msg), {})[connection.msgtype] = msg
             elif connection.msgtype == SENTENCE:
                 add_epoch(order, epochs.add(header_ns(msg), msg.sentence), precise, geo, stats)

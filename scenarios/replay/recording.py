@@ -25,7 +25,9 @@ import pymap3d
 
 from riverbench.unixtime import UNIX_EPOCH, unix_ns
 from scenarios.pipeline.feed import BadScan
+from scenarios.pipeline.inertial import ImuEvent
 from scenarios.pipeline.stream import ScanEvent
+from scenarios.replay.imu import ImuReading
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix
 from sim.nmea.epochs import Tally
@@ -44,7 +46,7 @@ class RecordedFix:
     sentences: tuple[str, ...] = ()
 
 
-Event = ScanEvent | RecordedFix | BadScan
+Event = ScanEvent | RecordedFix | BadScan | ImuEvent
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,9 @@ class Place:
     origin: tuple[float, float, float]
     epoch_utc: datetime
     start_azimuth_deg: float = 180.0
+    imu_noise: tuple[float, float] | None = None
+    """The scenario's IMU white-noise densities (gyro rad/s/sqrt(Hz), accel m/s^2/sqrt(Hz)) when an estimator is fed
+    the IMU (then a bag's sensor_msgs/Imu is read), else None."""
 
 
 @dataclass(frozen=True)
@@ -124,8 +129,8 @@ class LogStats:
 @dataclass(frozen=True)
 class Recording:
     """An opened recording: what was picked from it (lidar_source '' when it has no LiDAR: a GNSS-only replay), its time
-    span in replay seconds, its events (read lazily, once) and, when its GPS is NMEA, what reading it counted (filled as the
-    events are read)."""
+    span in replay seconds, its events (read lazily, once), when its GPS is NMEA, what reading it counted (filled as the
+    events are read), and its IMU topic and mount ('' when no IMU is read)."""
 
     path: Path
     format: str
@@ -136,6 +141,7 @@ class Recording:
     t_end: float
     events: Callable[[], Iterator[Event]] = field(repr=False)
     nmea: LogStats | None = field(default=None, repr=False)
+    imu_source: str = ""
 
     @property
     def gnss_only(self) -> bool:
@@ -144,21 +150,23 @@ class Recording:
 
 
 class TimeOrder:
-    """Events released in stamp order, a scan before a fix or failure at the same stamp, once the recording has moved past them."""
+    """Events released in stamp order, once the recording has moved past them; at the same stamp an IMU sample, then a
+    scan, then a fix or failure (a run's IMU batch up to a scan comes before it)."""
 
     def __init__(self) -> None:
-        self._heap: list[tuple[float, int, int, Event]] = []
+        self._heap: list[tuple[float, int, int, Event | ImuReading]] = []
         self._seq = itertools.count()
 
-    def add(self, event: Event) -> None:
+    def add(self, event: Event | ImuReading) -> None:
         """Hold an event until its turn."""
-        heapq.heappush(self._heap, (event.stamp, 0 if isinstance(event, ScanEvent) else 1, next(self._seq), event))
+        rank = 0 if isinstance(event, ImuReading) else 1 if isinstance(event, ScanEvent) else 2
+        heapq.heappush(self._heap, (event.stamp, rank, next(self._seq), event))
 
-    def release(self, before: float) -> Iterator[Event]:
+    def release(self, before: float) -> Iterator[Event | ImuReading]:
         """The held events stamped before `before`, in order."""
         while self._heap and self._heap[0][0] < before:
             yield heapq.heappop(self._heap)[3]
 
-    def rest(self) -> Iterator[Event]:
+    def rest(self) -> Iterator[Event | ImuReading]:
         """Every held event, in order (the recording ended)."""
         return self.release(math.inf)

@@ -82,6 +82,7 @@ def replay(
     *,
     lidar_topic: str | None = None,
     gps_topic: str | None = None,
+    imu_topic: str | None = None,
     nmea: str | os.PathLike | None = None,
     reference: str | os.PathLike | None = None,
     workers: int = 1,
@@ -100,8 +101,8 @@ def replay(
     out = Path(out_dir) if out_dir is not None else Path("runs") / f"replay-{path.stem}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
     check_out(out, directory=True)
     world = worlds.load(scenario.world, **scenario.world_params)
-    place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg)
-    opened = open_recording(path, place, lidar_topic, gps_topic)
+    place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg, imu_noise(scenario))
+    opened = open_recording(path, place, lidar_topic, gps_topic, imu_topic)
     if nmea is not None:
         if opened.gnss_only:
             raise ValueError(f"{path}: --nmea gives the GPS of a recording with LiDAR; this one has none (replay the NMEA log alone)")
@@ -119,18 +120,26 @@ def replay(
     return ReplayResult(scenario, opened, out, tree)
 
 
-def open_recording(path: Path, place: Place, lidar_topic: str | None, gps_topic: str | None) -> Recording:
+def imu_noise(scenario: Scenario) -> tuple[float, float] | None:
+    """The scenario's IMU white-noise densities in SI (gyro, accel) when an estimator is fed the IMU, else None."""
+    if scenario.imu is None or not any("imu" in e.sensors_used for e in scenario.estimators):
+        return None
+    gyro, accel = scenario.imu.noise_specs()
+    return gyro.white, accel.white
+
+
+def open_recording(path: Path, place: Place, lidar_topic: str | None, gps_topic: str | None, imu_topic: str | None = None) -> Recording:
     """The recording at `path`: a capture by its name or its libpcap magic number, an NMEA log (scenarios.replay.nmea_log.is_log),
     else a bag."""
     if path.suffix.lower() in (".pcap", ".pcapng") or (path.is_file() and magic(path) in PCAP_MAGIC):
-        if lidar_topic or gps_topic:
-            raise ValueError(f"{path}: a pcap has no topics (--lidar-topic and --gps-topic are for bags)")
+        if lidar_topic or gps_topic or imu_topic:
+            raise ValueError(f"{path}: a pcap has no topics (--lidar-topic, --gps-topic and --imu-topic are for bags)")
         return pcap.read(path, place)
     if nmea_log.is_log(path):
-        if lidar_topic or gps_topic:
-            raise ValueError(f"{path}: an NMEA log has no topics (--lidar-topic and --gps-topic are for bags)")
+        if lidar_topic or gps_topic or imu_topic:
+            raise ValueError(f"{path}: an NMEA log has no topics (--lidar-topic, --gps-topic and --imu-topic are for bags)")
         return nmea_log.read(path, place)
-    return bag.read(path, place, lidar_topic, gps_topic)
+    return bag.read(path, place, lidar_topic, gps_topic, imu_topic)
 
 
 def magic(path: Path) -> bytes:
@@ -186,6 +195,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
             "format": recording.format,
             "lidar": recording.lidar_source,
             "gps": recording.gps_source,
+            **({"imu": recording.imu_source} if recording.imu_source else {}),
             "time_zero_utc": geo.utc(0.0).isoformat(),
             "origin": list(geo.origin),
             "origin_from": geo.origin_source,

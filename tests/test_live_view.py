@@ -75,7 +75,7 @@ def test_recording_carries_world_scan_tracks_and_fixes_by_verdict(recorded):
 def test_one_scan_frame_per_scan_at_the_scan_times(recorded):
     out, _, rows = recorded
     metrics = json.loads((out / "metrics.json").read_text())
-    truth = files.read_tum(out / "groundtruth.tum")
+    truth = files.read_tum(out / "groundtruth.tum", scenario_time=True)
     scans = rows["/scan"]
     assert len(scans) == metrics["run"]["scans"] == len(truth) > 0
     assert np.allclose([t * 1e-9 for t, _ in scans], truth[:, 0], atol=1e-6)
@@ -86,7 +86,7 @@ def test_one_scan_frame_per_scan_at_the_scan_times(recorded):
 def test_truth_and_estimator_tracks_are_the_run_files(recorded):
     out, scenario, rows = recorded
     for entity, tum in [("/truth", "groundtruth.tum"), *((f"/estimators/{e.id}", f"{e.id}.tum") for e in scenario.estimators)]:
-        expected = files.read_tum(out / tum)
+        expected = files.read_tum(out / tum, scenario_time=True)
         got = rows[entity]
         assert len(got) == len(expected) > 0, entity
         assert np.allclose([t * 1e-9 for t, _ in got], expected[:, 0], atol=1e-6)
@@ -135,7 +135,7 @@ def test_a_short_recording_has_the_world_a_frame_per_scan_the_true_track_and_the
     scenario = scenarios.load("quickstart", set=[TINY])
     world = worlds.load(scenario.world, **scenario.world_params)
     assert {f"/world/{p.name}" for p in world.parts} <= set(rows)
-    truth = files.read_tum(out / "groundtruth.tum")
+    truth = files.read_tum(out / "groundtruth.tum", scenario_time=True)
     assert len(rows["/scan"]) == json.loads((out / "metrics.json").read_text())["run"]["scans"] == len(truth) > 0
     xy = np.array([(row["x"][0], row["y"][0]) for _, row in rows["/truth"]])
     assert np.abs(xy - truth[:, 1:3]).max() <= 1e-6

@@ -21,7 +21,8 @@ import scenarios
 import scenarios.export as export_module
 from scenarios.export import export
 from scenarios.export.frames import open_stream
-from scenarios.export.ros_messages import UERE_M, ros_ns
+from scenarios.export.ros_messages import GNSS_REPORT, UERE_M, ros_ns, typestore
+from scenarios.export.rosbag import fix_ns
 
 CANAL_3S = ["stretch={start_m = 350.0, end_m = 356.0}"]  # canal_multipath: 3 s, 31 scans; walls, quays, the road bridge 30 m ahead
 OUTAGE_1S = [
@@ -44,7 +45,7 @@ def simulated(name: str, overrides: list[str]):
 
 def messages(bag: Path, topic: str) -> list[tuple[int, object]]:
     """(record time ns, message) of every message on `topic`, in time order, read by rosbags' AnyReader."""
-    with AnyReader([bag]) as reader:
+    with AnyReader([bag], default_typestore=typestore()) as reader:
         connections = [c for c in reader.connections if c.topic == topic]
         return [(t, reader.deserialize(raw, c.msgtype)) for c, t, raw in reader.messages(connections=connections)]
 
@@ -95,6 +96,7 @@ def test_a_bag_directory_with_every_topic_and_its_count(canal, fmt):
         "/velodyne_points": ("sensor_msgs/msg/PointCloud2", len(frames)),
         "/gps/fix": ("sensor_msgs/msg/NavSatFix", len(fixes)),
         "/nmea_sentence": ("nmea_msgs/msg/Sentence", sum(len(fix.nmea()) for fix in fixes)),
+        "/gps/report": (GNSS_REPORT, len(fixes)),
         "/tf_static": ("tf2_msgs/msg/TFMessage", 1),
         "/tf": ("tf2_msgs/msg/TFMessage", len(frames)),
         "/odom/ground_truth": ("nav_msgs/msg/Odometry", len(frames)),
@@ -176,6 +178,34 @@ def test_navsat_fix_status_covariance_and_nmea_follow_the_receiver(outage, fmt):
     sentences = messages(bags[fmt], "/nmea_sentence")
     expected = [(ros_ns(info.epoch_utc, fix.stamp), text) for fix in fixes for text in fix.nmea()]
     assert [(t, msg.sentence) for t, msg in sentences] == expected and {msg.header.frame_id for _, msg in sentences} == {"gps"}
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_the_report_topic_holds_the_receivers_epoch_unrounded(canal, fmt):
+    bags, (info, frames) = canal
+    fixes = [fix for frame in frames for fix in frame.fixes]
+    for (t, msg), fix in zip(messages(bags[fmt], "/gps/report"), fixes, strict=True):
+        assert t == ns(msg.header.stamp) == ros_ns(info.epoch_utc, fix.stamp) and msg.header.frame_id == "gps"
+        assert (msg.quality, msg.num_sats, msg.hdop, msg.vdop, msg.pdop) == (fix.quality, fix.num_sats, fix.hdop, fix.vdop, fix.pdop)
+        np.testing.assert_array_equal([msg.speed_mps, msg.course_deg], [fix.speed_mps, fix.course_deg])
+        columns = [msg.prn, msg.azimuth_deg, msg.elevation_deg, msg.cn0_dbhz, msg.used]
+        assert [tuple(row) for row in zip(*(c.tolist() for c in columns))] == [(s.prn, s.az_deg, s.el_deg, s.snr, s.used) for s in fix.sats]
+        assert any(s.snr != round(s.snr) for s in fix.sats)  # what GSV's whole dB-Hz would lose
+    (path,) = bags["mcap"].glob("*.mcap")
+    with path.open("rb") as stream:  # the type travels in the file: the mcap library decodes it without riverbench's typestore
+        decoded = [msg for _, _, _, msg in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/gps/report"])]
+    assert [list(m.cn0_dbhz) for m in decoded] == [[s.snr for s in fix.sats] for fix in fixes]
+
+
+def test_a_fix_before_a_scan_of_the_same_nanosecond_is_stamped_before_it():
+    """At t = 0.6 s the receiver's epoch (3 / 5 = 0.6) comes before the scan (6 * 0.1 = 0.6000000000000001): both round to
+    600000000 ns, so the fix is written at 599999999 ns to keep the run's order for a reader that puts scans first."""
+    info, _ = open_stream(scenarios.load("open_river", set=["stretch={start_s = 0.0, end_s = 1.0}"]))
+    epoch = ros_ns(info.epoch_utc, 0.0)
+    assert 3 / 5 < 6 * 0.1 and ros_ns(info.epoch_utc, 3 / 5) == ros_ns(info.epoch_utc, 6 * 0.1) == epoch + 600_000_000
+    assert fix_ns(info, 3 / 5, 6 * 0.1) == epoch + 599_999_999
+    assert fix_ns(info, 0.4, 6 * 0.1) == fix_ns(info, 0.4, None) == epoch + 400_000_000  # any other fix: its own stamp
+    assert fix_ns(info, 6 * 0.1, 6 * 0.1 + 0.1) == epoch + 600_000_000  # a fix at the scan's own stamp comes after it anyway
 
 
 @pytest.mark.parametrize("fmt", FORMATS)

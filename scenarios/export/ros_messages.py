@@ -13,6 +13,13 @@
   does not list, the receiver's coasting position still filled in: it solved nothing, and consumers
   such as robot_localization's navsat_transform then skip it.
 - nmea_msgs/Sentence, frame `gps`: one per NMEA sentence of a fix (GGA, RMC, GSA, GSV...), its stamp.
+- riverbench_msgs/GnssReport, frame `gps`: the receiver's epoch report at full precision, which NMEA
+  prints rounded (DOPs to 1-2 decimals, each satellite's elevation, azimuth and C/N0 to whole degrees
+  and dB-Hz, speed and course to 3 and 2 decimals): GGA quality, satellites used, HDOP, VDOP, PDOP,
+  speed (m/s) and course (deg from north), and per satellite in view its PRN, azimuth, elevation,
+  C/N0 (0: not tracked) and use in the solution. No ROS driver publishes C/N0 finer than 1 dB-Hz;
+  this topic is riverbench's own, so that a replay gives the C/N0 monitor what the run gave it. The
+  type's definition travels in the bag (MCAP schema, rosbag2 message definitions).
 - TFMessage of TransformStamped and nav_msgs/Odometry (pose only: covariance and twist left zero).
 Time: ROS time = the scenario's UTC epoch + the simulation stamp, in integer nanoseconds.
 """
@@ -34,6 +41,21 @@ GPS_FRAME = "gps"
 BASE_FRAME = "base_link"
 MAP_FRAME = "map"
 SENTENCE_MSG = "std_msgs/Header header\nstring sentence\n"
+GNSS_REPORT = "riverbench_msgs/msg/GnssReport"
+GNSS_REPORT_MSG = """std_msgs/Header header
+int16 quality
+uint16 num_sats
+float64 hdop
+float64 vdop
+float64 pdop
+float64 speed_mps
+float64 course_deg
+uint16[] prn
+float64[] azimuth_deg
+float64[] elevation_deg
+float64[] cn0_dbhz
+bool[] used
+"""
 POINT = np.dtype(
     {
         "names": ["x", "y", "z", "intensity", "ring", "time"],
@@ -47,9 +69,10 @@ UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 def typestore() -> Typestore:
-    """ROS 2 Humble's message types plus nmea_msgs/msg/Sentence (not in the default store)."""
+    """ROS 2 Humble's message types plus nmea_msgs/msg/Sentence and riverbench_msgs/msg/GnssReport (not in the default store)."""
     store = get_typestore(Stores.ROS2_HUMBLE)
     store.register(get_types_from_msg(SENTENCE_MSG, "nmea_msgs/msg/Sentence"))
+    store.register(get_types_from_msg(GNSS_REPORT_MSG, GNSS_REPORT))
     return store
 
 
@@ -103,6 +126,26 @@ def nav_sat_fix(store: Typestore, ns: int, fix: GnssFix):
 def sentences(store: Typestore, ns: int, fix: GnssFix) -> list:
     """One nmea_msgs/Sentence per NMEA sentence of the fix."""
     return [store.types["nmea_msgs/msg/Sentence"](header=header(store, ns, GPS_FRAME), sentence=text) for text in fix.nmea()]
+
+
+def gnss_report(store: Typestore, ns: int, fix: GnssFix):
+    """The fix's receiver report at full precision (riverbench_msgs/GnssReport, see the module docstring)."""
+    sats = fix.sats
+    return store.types[GNSS_REPORT](
+        header=header(store, ns, GPS_FRAME),
+        quality=int(fix.quality),
+        num_sats=int(fix.num_sats),
+        hdop=float(fix.hdop),
+        vdop=float(fix.vdop),
+        pdop=float(fix.pdop),
+        speed_mps=float(fix.speed_mps),
+        course_deg=float(fix.course_deg),
+        prn=np.array([s.prn for s in sats], dtype=np.uint16),
+        azimuth_deg=np.array([s.az_deg for s in sats], dtype=np.float64),
+        elevation_deg=np.array([s.el_deg for s in sats], dtype=np.float64),
+        cn0_dbhz=np.array([s.snr for s in sats], dtype=np.float64),
+        used=np.array([s.used for s in sats], dtype=bool),
+    )
 
 
 def quaternion(store: Typestore, pose: np.ndarray):

@@ -7,19 +7,25 @@ Topics, named as the ROS drivers publish them (messages detailed in ros_messages
     /velodyne_points     sensor_msgs/PointCloud2, one per revolution (velodyne_pointcloud's transform node)
     /gps/fix             sensor_msgs/NavSatFix, one per fix (nmea_navsat_driver, ublox, septentrio drivers)
     /nmea_sentence       nmea_msgs/Sentence, each NMEA sentence of each fix (nmea_navsat_driver)
+    /gps/report          riverbench_msgs/GnssReport, each fix's DOPs and satellites (C/N0, elevation) unrounded
     /tf_static           tf2_msgs/TFMessage, once at the stream's start: base_link -> velodyne (the lidar mount)
                          and base_link -> gps (the antenna offset); offered QoS transient_local (latched)
     /tf                  tf2_msgs/TFMessage, map -> base_link ground truth at each scan's stamp
     /odom/ground_truth   nav_msgs/Odometry, the same pose
-Every message is recorded at its header stamp. The bag is written frame by frame and each frame's
-messages are on disk before the next frame is read (the sqlite3 transaction is committed, the MCAP
-chunk closed: a chunk per revolution), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
+Every message is recorded at its header stamp, the simulation stamp rounded to the nanosecond, except
+that a fix the run took before a scan whose stamp rounds to the same nanosecond (a fix at 0.6 s and a
+scan at 0.6000000000000001 s: both sensors' epochs, on grids that meet, differ in the last bit of a
+float) is stamped 1 ns earlier: a reader orders a scan before a fix at the same stamp, as the
+simulation does at equal stamps, so the bag keeps the run's order and a replay feeds the estimators
+what the run fed them. The bag is written frame by frame, a frame once the next one is known (for that
+rule), and each frame's messages are on disk before the one after the next is read (the sqlite3
+transaction is committed, the MCAP chunk closed: a chunk per revolution), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
 or `kiss_icp_pipeline <out>`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from itertools import chain
 from pathlib import Path
 
@@ -43,6 +49,7 @@ TOPICS = {
     "/velodyne_points": ("sensor_msgs/msg/PointCloud2", offered(QosDurability.VOLATILE)),
     "/gps/fix": ("sensor_msgs/msg/NavSatFix", offered(QosDurability.VOLATILE)),
     "/nmea_sentence": ("nmea_msgs/msg/Sentence", offered(QosDurability.VOLATILE)),
+    "/gps/report": (msgs.GNSS_REPORT, offered(QosDurability.VOLATILE)),
     "/tf_static": ("tf2_msgs/msg/TFMessage", offered(QosDurability.TRANSIENT_LOCAL)),
     "/tf": ("tf2_msgs/msg/TFMessage", offered(QosDurability.VOLATILE)),
     "/odom/ground_truth": ("nav_msgs/msg/Odometry", offered(QosDurability.VOLATILE)),
@@ -70,7 +77,7 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
         connections = {
             topic: writer.add_connection(topic, msgtype, typestore=store, offered_qos_profiles=qos) for topic, (msgtype, qos) in TOPICS.items()
         }
-        for batch in chain([static_messages(store, info)], (frame_messages(store, info, frame) for frame in frames)):
+        for batch in chain([static_messages(store, info)], (frame_messages(store, info, frame, after) for frame, after in with_next(frames))):
             for topic, ns, msg in batch:
                 writer.write(connections[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
                 counts["messages"] += 1
@@ -103,8 +110,28 @@ def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, 
     ]
 
 
-def frame_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
-    """The frame's messages in time order: its cloud and true pose at the scan's stamp, each fix and its sentences at theirs."""
+def with_next(frames: Iterable[Frame]) -> Iterator[tuple[Frame, float | None]]:
+    """Each frame with the next frame's stamp (None for the last), one frame behind the stream."""
+    previous = None
+    for frame in frames:
+        if previous is not None:
+            yield previous, frame.stamp
+        previous = frame
+    if previous is not None:
+        yield previous, None
+
+
+def fix_ns(info: StreamInfo, stamp: float, next_scan: float | None) -> int:
+    """A fix's ROS time: its stamp's, or 1 ns before the next scan's when it came before that scan but rounds to its stamp."""
+    ns = msgs.ros_ns(info.epoch_utc, stamp)
+    if next_scan is not None and stamp < next_scan and ns >= (scan_ns := msgs.ros_ns(info.epoch_utc, next_scan)):
+        return scan_ns - 1
+    return ns
+
+
+def frame_messages(store: Typestore, info: StreamInfo, frame: Frame, next_scan: float | None = None) -> list[tuple[str, int, object]]:
+    """The frame's messages in time order: its cloud and true pose at the scan's stamp, each fix, its sentences and its
+    report at the fix's (kept before the next scan at `next_scan`, see the module docstring)."""
     ns = msgs.ros_ns(info.epoch_utc, frame.stamp)
     scan = [
         ("/velodyne_points", ns, msgs.point_cloud(store, ns, frame.scan)),
@@ -113,8 +140,12 @@ def frame_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tup
     ]
     gnss = []
     for fix in frame.fixes:
-        t = msgs.ros_ns(info.epoch_utc, fix.stamp)
-        gnss += [("/gps/fix", t, msgs.nav_sat_fix(store, t, fix)), *(("/nmea_sentence", t, s) for s in msgs.sentences(store, t, fix))]
+        t = fix_ns(info, fix.stamp, next_scan)
+        gnss += [
+            ("/gps/fix", t, msgs.nav_sat_fix(store, t, fix)),
+            *(("/nmea_sentence", t, s) for s in msgs.sentences(store, t, fix)),
+            ("/gps/report", t, msgs.gnss_report(store, t, fix)),
+        ]
     return sorted(scan + gnss, key=lambda message: message[1])
 
 

@@ -57,10 +57,12 @@ class Feed:
         base_pose: Callable[[float], np.ndarray],
         t_start: float,
         log_fix: Callable[[object], None] | None = None,
+        after_scan: Callable[[float], None] | None = None,
     ) -> None:
-        """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log)."""
+        """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
+        after_scan(stamp) after each scan is recorded (the estimators' state is then the one recorded at that scan)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
-        self.log_fix = log_fix
+        self.log_fix, self.after_scan = log_fix, after_scan
         self.feeds = {e.id: e.matcher for e in scenario.estimators}
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
@@ -75,6 +77,17 @@ class Feed:
             return checked_pose(self.estimators[estimator_id].pose)
         except Exception:  # a plugin's pose may raise anything: steering sees an unknown pose, the scan step records the failure
             return nan_pose()
+
+    def yaw_sd_deg(self, estimator_id: str) -> float:
+        """An estimator's current heading standard deviation (deg) from its covariance; NaN when it has none or failed."""
+        if estimator_id in self.dead:
+            return math.nan
+        try:
+            cov = np.asarray(self.estimators[estimator_id].cov, dtype=float)
+        except Exception:  # a plugin's covariance may raise anything: no heading known
+            return math.nan
+        variance = float(cov[2, 2]) if cov.shape == (3, 3) else math.nan
+        return math.degrees(math.sqrt(variance)) if math.isfinite(variance) and variance >= 0 else math.nan
 
     def push(self, event) -> None:
         """Take the next event (ScanEvent, BadScan, or a fix event with `.fix`) and process what is due."""
@@ -142,6 +155,8 @@ class Feed:
 
         poses = self._each_estimator(step, event.stamp)
         self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
+        if self.after_scan is not None:
+            self.after_scan(event.stamp)
 
     def _fix(self, event) -> None:
         """One fix to every estimator, its verdicts into the record, then to log_fix."""

@@ -4,8 +4,10 @@ Topics are picked as KISS-ICP's rosbag dataloader picks its cloud: the only
 sensor_msgs/msg/PointCloud2 topic, or the one `lidar_topic` names (several and none named: a
 one-line error listing them). The GPS: the only nmea_msgs/msg/Sentence topic (the receiver's own
 sentences, with its satellites, C/N0 and dead-reckoning quality), else the only
-sensor_msgs/msg/NavSatFix topic, or the one `gps_topic` names (either type). Every event is stamped
-with its message's header stamp (see scenarios.replay.recording for the time base and the ordering;
+sensor_msgs/msg/NavSatFix topic, or the one `gps_topic` names (either type). A riverbench export's
+riverbench_msgs/msg/GnssReport topic, when the bag has one, gives each fix stamped like it its DOPs
+and satellites unrounded (scenarios.replay.reports). Every event is stamped with its message's
+header stamp (see scenarios.replay.recording for the time base and the ordering;
 scenarios.replay.clouds and .fixes for the fields).
 """
 
@@ -18,10 +20,10 @@ from pathlib import Path
 
 from rosbags.highlevel import AnyReader
 
-from scenarios.export.ros_messages import typestore
+from scenarios.export.ros_messages import GNSS_REPORT, typestore
 from scenarios.pipeline.feed import BadScan
 from scenarios.pipeline.stream import ScanEvent
-from scenarios.replay import clouds, fixes
+from scenarios.replay import clouds, fixes, reports
 from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, Place, RecordedFix, Recording, TimeOrder
 
 CLOUD = "sensor_msgs/msg/PointCloud2"
@@ -38,13 +40,15 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
         gps = pick(path, types, (SENTENCE,), gps_topic, "--gps-topic", fallback=(NAVSAT,))
         navsat = [t for t, kind in types.items() if kind == NAVSAT]
         refine = navsat[0] if types[gps] == SENTENCE and len(navsat) == 1 else None
+        found = [t for t, kind in types.items() if kind == GNSS_REPORT]
+        report = found[0] if len(found) == 1 else None
         if not reader.topics[lidar].msgcount:
             raise ValueError(f"{path}: topic {lidar} holds no point cloud")
         geo = Geo.choose(place, reader.start_time, first_position(reader, gps, place))
         span = (geo.seconds(reader.start_time), geo.seconds(reader.end_time))
         kind = "rosbag2" if reader.is2 else "ROS 1 bag"
-    source = gps + (f" (positions and DOPs refined by {refine})" if refine else "")
-    return Recording(path, kind, lidar, source, geo, *span, events=lambda: events(path, lidar, gps, refine, geo))
+    source = gps + (f" (positions and DOPs refined by {refine})" if refine else "") + (f" (DOPs and satellites from {report})" if report else "")
+    return Recording(path, kind, lidar, source, geo, *span, events=lambda: events(path, lidar, gps, refine, report, geo))
 
 
 @contextmanager
@@ -99,11 +103,12 @@ def header_ns(msg) -> int:
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
-def events(path: Path, lidar: str, gps: str, refine: str | None, geo: Geo) -> Iterator[Event]:
+def events(path: Path, lidar: str, gps: str, refine: str | None, report: str | None, geo: Geo) -> Iterator[Event]:
     """Scans, fixes and unreadable scans in time order, read lazily."""
-    order, epochs, precise = TimeOrder(), fixes.Epochs(), {}
+    order, epochs, precise, reported = TimeOrder(), fixes.Epochs(), {}, {}
     with opened(path) as reader:
-        connections = [c for c in reader.connections if c.topic in (lidar, gps, refine)]
+        connections = [c for c in reader.connections if c.topic in (lidar, gps, refine, report)]
+        held: list = []  # NavSatFix-only fixes wait for a report stamped like them (logged at the same time)
         for connection, log_ns, raw in reader.messages(connections=connections):
             if connection.topic == lidar:
                 order.add(scan_event(reader, connection.msgtype, raw, lidar, geo.seconds(log_ns), geo))
@@ -111,14 +116,17 @@ def events(path: Path, lidar: str, gps: str, refine: str | None, geo: Geo) -> It
             msg = reader.deserialize(raw, connection.msgtype)
             if connection.topic == refine:
                 precise[header_ns(msg)] = msg
+            elif connection.topic == report:
+                reported[header_ns(msg)] = msg
             elif connection.msgtype == SENTENCE:
-                add_epoch(order, epochs.add(header_ns(msg), msg.sentence), precise, geo)
+                add_epoch(order, epochs.add(header_ns(msg), msg.sentence), precise, reported, geo)
             else:
-                stamp = geo.seconds(header_ns(msg))
-                order.add(RecordedFix(stamp, fixes.from_navsatfix(stamp, msg, geo)))
+                held.append(msg)
+            held = add_navsat(order, held, log_ns, reported, geo)
             pending = math.inf if epochs.open_ns is None else geo.seconds(epochs.open_ns)
             yield from order.release(min(geo.seconds(log_ns) - REORDER_LAG_S, pending))
-        add_epoch(order, epochs.close(), precise, geo)
+        add_navsat(order, held, None, reported, geo)
+        add_epoch(order, epochs.close(), precise, reported, geo)
         yield from order.rest()
 
 
@@ -136,15 +144,32 @@ def scan_event(reader: AnyReader, msgtype: str, raw: bytes, topic: str, logged: 
         return BadScan(stamp, topic, str(exc))
 
 
-def add_epoch(order: TimeOrder, epoch: tuple[list[int], list[str]] | None, precise: dict[int, object], geo: Geo) -> None:
-    """Queue a closed NMEA epoch's fix, refined by the NavSatFix stamped like one of its sentences (older ones dropped)."""
+def add_navsat(order: TimeOrder, held: list, log_ns: int | None, reported: dict[int, object], geo: Geo) -> list:
+    """Queue the held NavSatFix fixes logged before `log_ns` (all when None), each with its report if there is one; the rest stay held."""
+    keep = []
+    for msg in held:
+        ns = header_ns(msg)
+        if log_ns is not None and ns >= log_ns:
+            keep.append(msg)
+            continue
+        stamp = geo.seconds(ns)
+        fix = fixes.from_navsatfix(stamp, msg, geo)
+        order.add(RecordedFix(stamp, reports.applied(fix, reported.pop(ns), geo) if ns in reported else fix))
+    return keep
+
+
+def add_epoch(order: TimeOrder, epoch: tuple[list[int], list[str]] | None, precise: dict[int, object], reported: dict[int, object], geo: Geo) -> None:
+    """Queue a closed NMEA epoch's fix, refined by the NavSatFix and the report stamped like one of its sentences (older ones dropped)."""
     if epoch is None:
         return
     stamps, lines = epoch
     stamp = geo.seconds(stamps[0])
     fix = fixes.from_nmea(stamp, lines, geo)
     match = next((precise[ns] for ns in stamps if ns in precise), None)
-    for ns in [ns for ns in precise if ns <= stamps[-1]]:
-        del precise[ns]
+    report = next((reported[ns] for ns in stamps if ns in reported), None)
+    for table in (precise, reported):
+        for ns in [ns for ns in table if ns <= stamps[-1]]:
+            del table[ns]
     if fix is not None:
-        order.add(RecordedFix(stamp, fix if match is None else fixes.refined(fix, match, geo), tuple(lines)))
+        fix = fix if match is None else fixes.refined(fix, match, geo)
+        order.add(RecordedFix(stamp, fix if report is None else reports.applied(fix, report, geo), tuple(lines)))

@@ -5,9 +5,9 @@ time order; scenarios.pipeline.feed runs them through the scenario's matchers an
 of a simulated run. Everything the scenario says about the world and the sensors' simulation is
 unused, except the world's geodetic origin (the ENU frame), the GNSS epoch (the time base) and the
 boat's configuration (lidar mount, antenna offset). Matcher odometry is chained from identity at
-the first scan, then moved as a whole onto the first pose any estimator reports (at that scan or
-the matcher's first after it); without any estimate it stays chained from identity at the
-world origin. The run directory is written under a hidden name and renamed when complete:
+the first scan, then moved as a whole onto the first estimate that has a heading (at that scan or
+the matcher's first after it; scenarios.replay.anchor), recorded in metrics.json as run.anchor;
+without any estimate it stays chained from identity at the world origin. The run directory is written under a hidden name and renamed when complete:
 
     scenario.toml  metrics.json (scenarios.replay.metrics)  <id>.tum per estimator and matcher
     gps.csv (every fix with each verdict)  gps.nmea (the recorded sentences, when there are any)
@@ -16,7 +16,6 @@ world origin. The run directory is written under a hidden name and renamed when 
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
@@ -40,11 +39,10 @@ from scenarios.pipeline.assembly import recorder as make_recorder
 from scenarios.pipeline.feed import Feed, nmea_writer
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import ScanEvent
-from scenarios.replay import bag, pcap
+from scenarios.replay import anchor, bag, pcap
 from scenarios.replay import metrics as replay_metrics
 from scenarios.replay.recording import Place, Recording
 from scenarios.score import metrics as run_metrics
-from scenarios.score.record import RunRecord
 from scenarios.spec.scenario import Scenario
 
 PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
@@ -120,8 +118,11 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     recorder = make_recorder(scenario)
     setups = matcher_setups(scenario)
     start = np.eye(4)
+    headings = anchor.HeadingLog([e.id for e in scenario.estimators])
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        feed = Feed(scenario, pool, recorder, lambda stamp: start, recording.t_start, nmea_writer(nmea, lambda event: list(event.sentences)))
+        log = nmea_writer(nmea, lambda event: list(event.sentences))
+        feed = Feed(scenario, pool, recorder, lambda stamp: start, recording.t_start, log, after_scan=headings)
+        headings.sd_of = feed.yaw_sd_deg
         feed.drive(
             recording.events(),
             lambda event: (
@@ -134,7 +135,9 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         workers_rss, lanes = pool.workers_rss_mb, pool.lanes
     if not (tmp / "gps.nmea").stat().st_size:
         (tmp / "gps.nmea").unlink()
-    rec = anchored(recorder.finish([]), [e.id for e in scenario.estimators])
+    rec = recorder.finish([])
+    start_pose = anchor.choose(rec, headings)
+    rec = anchor.anchored(rec, start_pose)
     wall = time.perf_counter() - wall_start
     geo = recording.geo
     run_info = {
@@ -160,6 +163,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         "workers": len(lanes),
         "lanes": lanes,
         "failures": rec.failures,
+        "anchor": start_pose.describe(float(rec.scan_t[start_pose.index])) if start_pose is not None else None,
     }
     tree = run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float)))
     (tmp / "scenario.toml").write_text(
@@ -173,23 +177,3 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
     files.write_gps_csv(tmp / "gps.csv", rec, truth=False)
     return tree
-
-
-def anchored(rec: RunRecord, estimator_ids: list[str]) -> RunRecord:
-    """The record with each matcher's odometry (chained from identity) moved onto the first estimate (see the module docstring)."""
-    first = {eid: np.flatnonzero(np.isfinite(rec.estimates[eid]).all(axis=(1, 2))) for eid in estimator_ids}
-    ready = [(index[0], order, eid) for order, (eid, index) in enumerate(first.items()) if len(index)]
-    if not ready:
-        return rec
-    start, _, eid = min(ready)
-    estimate = rec.estimates[eid]
-    matches = {}
-    for mid, track in rec.matches.items():
-        usable = np.isfinite(track.pose).all(axis=(1, 2)) & np.isfinite(estimate).all(axis=(1, 2))
-        usable[:start] = False
-        if not usable.any():
-            matches[mid] = track
-            continue
-        k = int(np.argmax(usable))
-        matches[mid] = dataclasses.replace(track, pose=estimate[k] @ np.linalg.inv(track.pose[k]) @ track.pose)
-    return dataclasses.replace(rec, matches=matches)

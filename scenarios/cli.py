@@ -518,8 +518,9 @@ def export(
 
 @app.command()
 def replay(
-    recording: Path = typer.Argument(..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too) or a Velodyne HDL-32E pcap"),
+    recording: Path = typer.Argument(..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too) or a Velodyne pcap (HDL-32E, VLP-16, VLP-32C...)"),
     scenario: str = typer.Option(..., help="the scenario whose matchers, estimators, mount and world origin to use (name or .toml)"),
+    set_: list[str] = typer.Option([], "--set", help="override a field of the scenario: key=value (TOML value), repeatable"),
     out: Path = typer.Option(None, help="run directory (default runs/replay-<name>-<UTC time>/)"),
     lidar_topic: str = typer.Option(None, help="the PointCloud2 topic (default: the only one)"),
     gps_topic: str = typer.Option(None, help="the NMEA Sentence or NavSatFix topic (default: the only one)"),
@@ -536,7 +537,7 @@ def replay(
     with user_errors():
         if not recording.exists():
             raise ValueError(f"{recording}: no such bag or pcap")
-        scenarios_spec = load_scenario(scenario)
+        scenarios_spec = load_scenario(scenario, set=set_)
     try:
         with user_errors(), RunProgress(recording.name, console, quiet) as progress:
             result = replay_recording(
@@ -556,6 +557,8 @@ def replay(
         errors.print(f"[bold red]replay failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
         raise typer.Exit(1) from None
     target = result.report if result.report.exists() else result.out_dir
+    for warning in result.metrics["run"].get("warnings", []):
+        errors.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
     console.print(f"replayed {result.metrics['run']['scans']} scans: {target}", highlight=False)
 
 

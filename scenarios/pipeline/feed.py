@@ -57,10 +57,11 @@ class Feed:
         base_pose: Callable[[float], np.ndarray],
         t_start: float,
         log_fix: Callable[[object], None] | None = None,
-        after_scan: Callable[[float], None] | None = None,
+        after_scan: Callable[[float, dict], None] | None = None,
     ) -> None:
         """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
-        after_scan(stamp) after each scan is recorded (the estimators' state is then the one recorded at that scan)."""
+        after_scan(stamp, results) after each scan is recorded, with the matchers' results by id (the estimators' state is
+        then the one recorded at that scan)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
         self.log_fix, self.after_scan = log_fix, after_scan
         self.feeds = {e.id: e.matcher for e in scenario.estimators}
@@ -156,7 +157,7 @@ class Feed:
         poses = self._each_estimator(step, event.stamp)
         self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
         if self.after_scan is not None:
-            self.after_scan(event.stamp)
+            self.after_scan(event.stamp, results)
 
     def _fix(self, event) -> None:
         """One fix to every estimator, its verdicts into the record, then to log_fix."""

@@ -22,13 +22,13 @@ COURSE_SD_DEG = 45.0
 
 @dataclass
 class HeadingLog:
-    """Each estimator's heading standard deviation (deg) at each scan, read by Feed's after_scan through `sd_of`."""
+    """Each estimator's heading standard deviation (deg) at each scan, read through `sd_of` when called after each scan."""
 
     estimator_ids: list[str]
     sd_of: Callable[[str], float] | None = None  # the Feed's yaw_sd_deg, once the Feed exists
     sd: dict[str, list[float]] = field(default_factory=dict)
 
-    def __call__(self, stamp: float) -> None:
+    def __call__(self, stamp: float, results: dict | None = None) -> None:
         for eid in self.estimator_ids:
             self.sd.setdefault(eid, []).append(self.sd_of(eid) if self.sd_of is not None else math.nan)
 

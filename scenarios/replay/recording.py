@@ -111,6 +111,8 @@ class Recording:
     t_start: float
     t_end: float
     events: Callable[[], Iterator[Event]] = field(repr=False)
+    facts: dict = field(default_factory=dict)
+    """What the reader found that a report should state (a capture's sensor, clocks, revolutions, fixes in the file)."""
 
 
 class TimeOrder:

@@ -68,24 +68,53 @@ def build(tree: dict, images: dict[str, str]) -> list:
 
 
 def header(tree: dict) -> list:
-    """Title, what was replayed through what, its time base and ENU origin, and how fast it ran."""
+    """Title, what was replayed through what, its sensor, timeline, clocks and ENU origin, what was dropped, how fast it ran, and warnings."""
     run, rec = tree["run"], tree["run"]["recording"]
     lat, lon = rec["origin"][:2]
-    return [
+    digits = ".2f" if run["duration_s"] < 100 else ".1f"
+    blocks = [
         Heading(1, f"riverbench replay: {Path(rec['path']).name}"),
         Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {rec['format']} · lidar: {rec['lidar']} · GPS: {rec['gps']}", "meta"),
+    ]
+    if rec.get("sensor_note"):
+        blocks.append(Text(f"sensor: {rec['sensor_note']}", "meta"))
+    clocks = rec.get("clocks")
+    timeline = f" on the {clocks['timeline']}" if clocks else ""
+    blocks.append(
         Text(
-            f"time zero {rec['time_zero_utc']} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
-            f"t = {num(run['t_start'], '.1f')} … {num(run['t_end'], '.1f')} s",
+            f"time zero {rec['time_zero_utc']}{timeline} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
+            f"t = {num(run['t_start'], digits)} … {num(run['t_end'], digits)} s",
             "meta",
-        ),
+        )
+    )
+    if clocks:
+        pairs = (("capture − sensor", "capture_minus_sensor_s"), ("sensor − GNSS", "sensor_minus_gnss_s"), ("capture − GNSS", "capture_minus_gnss_s"))
+        offsets = [f"{name} {num(clocks[key], '+.3f')} s" for name, key in pairs if clocks.get(key) is not None]
+        measured = f" (GNSS offsets from {clocks['gnss_offsets_from']})" if clocks.get("gnss_offsets_from") else ""
+        blocks.append(Text(f"clocks: {', '.join(offsets)}{measured}; PPS {clocks['pps']}", "meta"))
+    if "revolutions" in rec:
+        blocks.append(
+            Text(
+                f"{rec['revolutions']} whole revolutions replayed, {rec['partial_revolutions_dropped']} partial ones dropped · "
+                f"{run['fixes']} of the {rec['fixes_in_file']} GPRMC fixes in the file read",
+                "meta",
+            )
+        )
+    blocks.append(
         Text(
-            f"{num(run['duration_s'], '.1f')} s of recording in {num(run['wall_s'], '.1f')} s "
+            f"{num(run['duration_s'], digits)} s of recording in {num(run['wall_s'], '.1f')} s "
             f"({num(run['realtime_factor'], '.1f')}× real time) · {run['scans']} scans · {run['fixes']} GPS fixes · "
             f"peak memory {num(run['peak_rss_mb'], '.0f')} MB",
             "meta",
-        ),
-    ]
+        )
+    )
+    anchor = run.get("anchor")
+    if anchor:
+        heading = {"estimate": "its heading", "course over ground": "its course over ground", "none": "no heading known: its position only"}
+        where = f"{anchor['estimator']} at t = {num(anchor['t'], digits)} s"
+        blocks.append(Text(f"matcher odometry laid on {where} ({heading[anchor['heading']]})", "meta"))
+    blocks += [Text(f"warning: {warning}", "meta") for warning in run.get("warnings", [])]
+    return blocks
 
 
 def labels(nodes: dict[str, dict]) -> dict[str, str]:

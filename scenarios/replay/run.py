@@ -39,14 +39,11 @@ from scenarios.pipeline.assembly import recorder as make_recorder
 from scenarios.pipeline.feed import Feed, nmea_writer
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import ScanEvent
-from scenarios.replay import anchor, bag, pcap
+from scenarios.replay import anchor, bag, capture, gates, pcap
 from scenarios.replay import metrics as replay_metrics
 from scenarios.replay.recording import Place, Recording
 from scenarios.score import metrics as run_metrics
 from scenarios.spec.scenario import Scenario
-
-PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
-"""libpcap file magic numbers (microsecond and nanosecond, either byte order)."""
 
 
 @dataclass
@@ -99,17 +96,11 @@ def replay(
 
 def open_recording(path: Path, place: Place, lidar_topic: str | None, gps_topic: str | None) -> Recording:
     """The recording at `path`: a capture by its name or its libpcap magic number, else a bag."""
-    if path.suffix.lower() in (".pcap", ".pcapng") or (path.is_file() and magic(path) in PCAP_MAGIC):
+    if path.suffix.lower() in (".pcap", ".pcapng") or (path.is_file() and capture.is_capture(path)):
         if lidar_topic or gps_topic:
             raise ValueError(f"{path}: a pcap has no topics (--lidar-topic and --gps-topic are for bags)")
         return pcap.read(path, place)
     return bag.read(path, place, lidar_topic, gps_topic)
-
-
-def magic(path: Path) -> bytes:
-    """The file's first four bytes."""
-    with path.open("rb") as handle:
-        return handle.read(4)
 
 
 def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress) -> dict:
@@ -118,10 +109,15 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
     recorder = make_recorder(scenario)
     setups = matcher_setups(scenario)
     start = np.eye(4)
-    headings = anchor.HeadingLog([e.id for e in scenario.estimators])
+    headings, refusals = anchor.HeadingLog([e.id for e in scenario.estimators]), gates.RefusalTally(scenario)
+
+    def after_scan(stamp: float, results: dict) -> None:
+        headings(stamp)
+        refusals(stamp, results)
+
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         log = nmea_writer(nmea, lambda event: list(event.sentences))
-        feed = Feed(scenario, pool, recorder, lambda stamp: start, recording.t_start, log, after_scan=headings)
+        feed = Feed(scenario, pool, recorder, lambda stamp: start, recording.t_start, log, after_scan=after_scan)
         headings.sd_of = feed.yaw_sd_deg
         feed.drive(
             recording.events(),
@@ -151,6 +147,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
             "time_zero_utc": geo.utc(0.0).isoformat(),
             "origin": list(geo.origin),
             "origin_from": geo.origin_source,
+            **recording.facts,
         },
         "t_start": recording.t_start,
         "t_end": recording.t_end,
@@ -163,6 +160,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         "workers": len(lanes),
         "lanes": lanes,
         "failures": rec.failures,
+        "warnings": refusals.warnings(),
         "anchor": start_pose.describe(float(rec.scan_t[start_pose.index])) if start_pose is not None else None,
     }
     tree = run_metrics.json_safe(replay_metrics.compute(rec, run_info, np.asarray(scenario.gnss.antenna_offset_m, dtype=float)))

@@ -1,7 +1,7 @@
 """Which check refused a replay's scans, and the --set key that changes it.
 
 A real recording can fall outside the defaults a simulated river was tuned on (a car at 30 kn, a 20 Hz VLP-16's
-sparser rings): when one check refuses most of a matcher's scans (more than MOST of those after its first), the
+sparser rings): when one check refuses most of a matcher's scans (more than MOST of them), the
 replay says which, with an example of its reason and the key to change. The check is the matcher parameter its
 reason names (every matcher's refusals do: "implausible motion: 14.2 m/s > max_speed_mps 10.0",
 "too few points: 312 < gate_min_points 500").
@@ -39,9 +39,9 @@ class RefusalTally:
         """One line per check that refused most of a matcher's scans."""
         out = []
         for mid, refused in self._refused.items():
-            scans = self._scans[mid] - 1  # the first scan has nothing to match
+            scans = self._scans[mid]
             for key, n in refused.most_common():
-                if scans > 0 and n > MOST * scans:
+                if n > MOST * scans:
                     out.append(
                         f"{mid}: {key} refused {n} of {scans} scans (e.g. {self._example[(mid, key)]!r}); "
                         f"change it with --set matchers.{mid}.params.{key}=VALUE"

@@ -211,7 +211,7 @@ def identify(seen: Evidence, where: str) -> Identified:
     """The model the packets are (module docstring); a one-line ValueError for a sensor this bench does not decode."""
     claimed = BY_ID.get(seen.product_id)
     label = f"{claimed.name} (0x{seen.product_id:02X})" if claimed else f"product id 0x{seen.product_id:02X}"
-    if seen.lower_bank:
+    if seen.lower_bank and seen.product_id != BY_NAME["VLS-128"].product_id:  # the VLS-128's four banks carry it too
         raise ValueError(f"{where}: HDL-64E data (its blocks carry the lower-bank flag 0xDDFF): not supported (it needs the unit's own calibration)")
     if seen.product_id in UNSUPPORTED:
         raise ValueError(f"{where}: {UNSUPPORTED[seen.product_id]}: not supported")

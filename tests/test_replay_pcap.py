@@ -18,6 +18,7 @@ import numpy as np
 import pynmea2
 import pytest
 import velodyne_decoder as vd
+from velodyne_streams import ranges, stream
 
 import scenarios
 from scenarios.pipeline.stream import ScanEvent
@@ -25,7 +26,6 @@ from scenarios.replay import pcap, replay
 from scenarios.replay.recording import Place, RecordedFix, unix_ns
 from scenarios.replay.velodyne import BY_NAME, MODELS, Evidence, identify
 from sim.lidar import HDL32E_ELEVATION_DEG
-from tests.velodyne_streams import ranges, stream
 
 DATA = Path(__file__).parent / "data" / "pcap"
 HDL32E = DATA / "monterey-hdl32e-prefix.pcap"

@@ -217,8 +217,13 @@ def test_bad_input_is_one_line_and_writes_nothing(recorded, tmp_path):
     (tmp_path / "full" / "x").touch()
     (tmp_path / "header.pcap").write_bytes(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1))
     shutil.copy(recorded["root"] / "run.pcap", tmp_path / "copy.pcap")
+    store = typestore()
+    with Writer(tmp_path / "no_points", version=8) as writer:  # a bag without any topic a replay can use
+        log = writer.add_connection("/rosout_text", "std_msgs/msg/String", typestore=store)
+        writer.write(log, 1, bytes(store.serialize_cdr(store.types["std_msgs/msg/String"](data="hello"), "std_msgs/msg/String")))
     cases = [
         ("missing", None, "no such bag"),
+        ("no_points", None, r"no_points: no PointCloud2 topic$"),
         ("notes.txt", None, "not a readable bag"),
         ("empty", None, "not a readable bag"),
         ("header.pcap", None, "no Velodyne data packets"),

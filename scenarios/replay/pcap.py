@@ -2,7 +2,7 @@
 
 A first pass reads the whole capture (a truncated one fails here, before anything is written): which sensor it
 is (scenarios.replay.velodyne: the factory bytes checked against the data), its clocks and the one timeline they
-give (scenarios.replay.clocks), its revolutions and its GPRMC sentences. The second pass, lazily:
+give (scenarios.replay.clocks) and its GPRMC sentences. The second pass, lazily:
 - data packets (1206-byte payloads) are cut into revolutions where the scenario's lidar starts one ([lidar]
   start_azimuth_deg, by default behind the sensor; scenarios.replay.revolutions) and each whole revolution is
   decoded by velodyne_decoder with the model's VeloView calibration (every beam from the sensor's centre, as the
@@ -76,7 +76,6 @@ def read(path: str | Path, place: Place) -> Recording:
     clocks = survey.clocks(revolution_s)
     first, last = clocks.utc_ns(survey.first_sensor_ns), clocks.utc_ns(survey.last_sensor_ns)
     geo = Geo.choose(place, min([first, *(a.epoch_ns for a in survey.arrivals)]), first_position)  # no event before time zero
-    whole, partial = count_revolutions(path, place.start_azimuth_deg, seen)
     mode = {0x37: "strongest return", 0x38: "last return", DUAL: "dual return: strongest kept"}.get(seen.return_mode, "unknown return mode")
     facts = {
         "sensor": sensor.model.name,
@@ -84,20 +83,20 @@ def read(path: str | Path, place: Place) -> Recording:
         "return_mode": mode,
         "rotation_hz": 1.0 / revolution_s,
         "data_packets": survey.data_packets,
-        "revolutions": whole,
-        "partial_revolutions_dropped": partial,
+        "revolutions": 0,  # counted as the events are read
+        "partial_revolutions_dropped": 0,
         "fixes_in_file": sentences,
         "clocks": clocks.describe(),
     }
     return Recording(
         path,
         "pcap",
-        f"{sensor.model.name} data packets ({survey.data_packets}; {whole} whole revolutions at {1.0 / revolution_s:.2f} Hz, {mode})",
+        f"{sensor.model.name} data packets ({survey.data_packets}; {1.0 / revolution_s:.2f} Hz, {mode})",
         "GPRMC of the position packets" if sentences else "none (the position packets relay no NMEA)",
         geo,
         geo.seconds(first),
         geo.seconds(last),
-        events=lambda: events(path, geo, place.start_azimuth_deg, sensor, seen, clocks),
+        events=lambda: events(path, geo, place.start_azimuth_deg, sensor, seen, clocks, facts),
         facts=facts,
     )
 
@@ -137,17 +136,6 @@ def packets(path: Path, patch: tuple[int, int] | None) -> Iterator[Packet | tupl
             yield clock.ns(telemetry.usec_since_toh, datagram.ns), datagram.ns, telemetry.nmea_sentence.strip()
 
 
-def count_revolutions(path: Path, cut_deg: float, seen: Evidence) -> tuple[int, int]:
-    """(whole, partial) revolutions of the capture."""
-    cutter, counts = Cutter(cut_deg, seen.packet_s * 1e9), [0, 0]
-    for item in packets(path, None):
-        if isinstance(item, Packet) and (done := cutter.add(item)) is not None:
-            counts[not done.whole] += 1
-    if (done := cutter.finish()) is not None:
-        counts[not done.whole] += 1
-    return counts[0], counts[1]
-
-
 def factory_patch(seen: Evidence, sensor: Identified) -> tuple[int, int] | None:
     """The factory bytes velodyne_decoder must see to decode as the identified model (None: the packets' own will do)."""
     mode = seen.return_mode if seen.return_mode in (0x37, 0x38, DUAL) else sensor.factory_bytes[0]
@@ -155,16 +143,16 @@ def factory_patch(seen: Evidence, sensor: Identified) -> tuple[int, int] | None:
     return None if wanted == (seen.return_mode, seen.product_id) else wanted
 
 
-def events(path: Path, geo: Geo, cut_deg: float, sensor: Identified, seen: Evidence, clocks: Clocks) -> Iterator[Event]:
-    """Scans and fixes in time order, decoded lazily."""
+def events(path: Path, geo: Geo, cut_deg: float, sensor: Identified, seen: Evidence, clocks: Clocks, facts: dict) -> Iterator[Event]:
+    """Scans and fixes in time order, decoded lazily; whole and partial revolutions counted into `facts`."""
     decoder = vd.ScanDecoder(sensor.model.decoder_config())
     cutter, order, latest = Cutter(cut_deg, seen.packet_s * 1e9), TimeOrder(), ""
     for item in packets(path, factory_patch(seen, sensor)):
         if isinstance(item, Packet):
             now = item.sensor_ns
             done = cutter.add(item)
-            if done is not None and done.whole:
-                order.add(scan_event(decoder, done, sensor, seen.dual, clocks, geo))
+            if done is not None:
+                keep(done, order, decoder, sensor, seen.dual, clocks, geo, facts)
         else:
             now, arrived, line = item
             if line and line != latest and (fields := rmc(line)) is not None:
@@ -173,9 +161,16 @@ def events(path: Path, geo: Geo, cut_deg: float, sensor: Identified, seen: Evide
             latest = line or latest
         yield from order.release(geo.seconds(clocks.utc_ns(now) - clocks.lag_ns))
     done = cutter.finish()
-    if done is not None and done.whole:
-        order.add(scan_event(decoder, done, sensor, seen.dual, clocks, geo))
+    if done is not None:
+        keep(done, order, decoder, sensor, seen.dual, clocks, geo, facts)
     yield from order.rest()
+
+
+def keep(revolution: Revolution, order: TimeOrder, decoder, sensor: Identified, dual: bool, clocks: Clocks, geo: Geo, facts: dict) -> None:
+    """Queue a whole revolution's scan; count it, or the partial one dropped."""
+    facts["revolutions" if revolution.whole else "partial_revolutions_dropped"] += 1
+    if revolution.whole:
+        order.add(scan_event(decoder, revolution, sensor, dual, clocks, geo))
 
 
 def scan_event(decoder: vd.ScanDecoder, revolution: Revolution, sensor: Identified, dual: bool, clocks: Clocks, geo: Geo) -> ScanEvent:

@@ -150,7 +150,7 @@ def test_matcher_odometry_starts_from_an_estimate_with_a_heading(recorded):
     truth, gicp = poses(tum(recorded["run"] / "groundtruth.tum")), poses(tum(result.out_dir / "gicp.tum"))
     yaw = lambda p: np.degrees(np.arctan2(p[:, 1, 0], p[:, 0, 0]))
     off = np.hypot(*(truth[:, :2, 3] - gicp[:, :2, 3]).T)
-    assert off.max() < 0.1 and np.abs(yaw(truth) - yaw(gicp)).max() < 0.5  # measured 0.011 m, 0.008 deg (gps_only: 14 m off, yaw 0)
+    assert off.max() < 0.1 and np.abs(yaw(truth) - yaw(gicp)).max() < 0.5  # measured 0.011 m, 0.008 deg
 
 
 def test_run_directory_holds_no_truth(recorded):

@@ -103,7 +103,8 @@ def header(tree: dict) -> list:
     blocks.append(
         Text(
             f"{num(run['duration_s'], digits)} s of recording in {num(run['wall_s'], '.1f')} s "
-            f"({num(run['realtime_factor'], '.1f')}× real time) · {run['scans']} scans · {run['fixes']} GPS fixes · "
+            f"({num(run['realtime_factor'], '.1f')}× real time; opening it took {num(run.get('read_s'), '.1f')} s, starting "
+            f"{run['workers']} process(es) {num(run.get('startup_s'), '.1f')} s) · {run['scans']} scans · {run['fixes']} GPS fixes · "
             f"peak memory {num(run['peak_rss_mb'], '.0f')} MB",
             "meta",
         )

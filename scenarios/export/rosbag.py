@@ -17,9 +17,10 @@ that a fix the run took before a scan whose stamp rounds to the same nanosecond 
 scan at 0.6000000000000001 s: both sensors' epochs, on grids that meet, differ in the last bit of a
 float) is stamped 1 ns earlier: a reader orders a scan before a fix at the same stamp, as the
 simulation does at equal stamps, so the bag keeps the run's order and a replay feeds the estimators
-what the run fed them. The bag is written frame by frame, a frame once the next one is known (for that
-rule), and each frame's messages are on disk before the one after the next is read (the sqlite3
-transaction is committed, the MCAP chunk closed: a chunk per revolution), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
+what the run fed them. The bag is written frame by frame: each frame's cloud and true pose are on disk
+before the next frame is read (the sqlite3 transaction is committed, the MCAP chunk closed: a chunk per
+revolution, the last revolution's fixes in one more), its fixes go with the next frame, once the next
+scan's stamp is known (for that rule), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
 or `kiss_icp_pipeline <out>`.
 """
 
@@ -77,7 +78,7 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
         connections = {
             topic: writer.add_connection(topic, msgtype, typestore=store, offered_qos_profiles=qos) for topic, (msgtype, qos) in TOPICS.items()
         }
-        for batch in chain([static_messages(store, info)], (frame_messages(store, info, frame, after) for frame, after in with_next(frames))):
+        for batch in chain([static_messages(store, info)], frame_batches(store, info, frames)):
             for topic, ns, msg in batch:
                 writer.write(connections[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
                 counts["messages"] += 1
@@ -110,15 +111,15 @@ def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, 
     ]
 
 
-def with_next(frames: Iterable[Frame]) -> Iterator[tuple[Frame, float | None]]:
-    """Each frame with the next frame's stamp (None for the last), one frame behind the stream."""
-    previous = None
+def frame_batches(store: Typestore, info: StreamInfo, frames: Iterable[Frame]) -> Iterator[list[tuple[str, int, object]]]:
+    """The messages to write (and flush) as each frame comes: the previous frame's fixes, stamped now that the next scan's
+    stamp is known (see fix_ns), then this frame's scan; the last frame's fixes at the end."""
+    previous: Frame | None = None
     for frame in frames:
-        if previous is not None:
-            yield previous, frame.stamp
+        yield (fix_messages(store, info, previous, frame.stamp) if previous is not None else []) + scan_messages(store, info, frame)
         previous = frame
-    if previous is not None:
-        yield previous, None
+    if previous is not None and previous.fixes:
+        yield fix_messages(store, info, previous, None)
 
 
 def fix_ns(info: StreamInfo, stamp: float, next_scan: float | None) -> int:
@@ -129,24 +130,27 @@ def fix_ns(info: StreamInfo, stamp: float, next_scan: float | None) -> int:
     return ns
 
 
-def frame_messages(store: Typestore, info: StreamInfo, frame: Frame, next_scan: float | None = None) -> list[tuple[str, int, object]]:
-    """The frame's messages in time order: its cloud and true pose at the scan's stamp, each fix, its sentences and its
-    report at the fix's (kept before the next scan at `next_scan`, see the module docstring)."""
+def scan_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
+    """The frame's cloud and true pose at the scan's stamp."""
     ns = msgs.ros_ns(info.epoch_utc, frame.stamp)
-    scan = [
+    return [
         ("/velodyne_points", ns, msgs.point_cloud(store, ns, frame.scan)),
         ("/tf", ns, msgs.tf_message(store, [msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)])),
         ("/odom/ground_truth", ns, msgs.odometry(store, ns, frame.base_pose)),
     ]
-    gnss = []
+
+
+def fix_messages(store: Typestore, info: StreamInfo, frame: Frame, next_scan: float | None) -> list[tuple[str, int, object]]:
+    """Each of the frame's fixes, its sentences and its report, at the fix's stamp (kept before the next scan at `next_scan`)."""
+    out = []
     for fix in frame.fixes:
         t = fix_ns(info, fix.stamp, next_scan)
-        gnss += [
+        out += [
             ("/gps/fix", t, msgs.nav_sat_fix(store, t, fix)),
             *(("/nmea_sentence", t, s) for s in msgs.sentences(store, t, fix)),
             ("/gps/report", t, msgs.gnss_report(store, t, fix)),
         ]
-    return sorted(scan + gnss, key=lambda message: message[1])
+    return out
 
 
 def streaming(writer: Writer, storage: StoragePlugin) -> Callable[[], None]:

@@ -46,7 +46,6 @@ def main() -> None:
                     shutil.rmtree(out)
             run, rec = result.metrics["run"], result.metrics["run"]["recording"]
             clocks = rec["clocks"]
-            offset = lambda key: "-" if clocks[key] is None else f"{clocks[key]:+.3f} s"
             row = [
                 path.name,
                 rec["sensor"] + (" (bytes disagree)" if rec["sensor_note"] else ""),
@@ -55,13 +54,16 @@ def main() -> None:
                 str(rec["partial_revolutions_dropped"]),
                 f"{result.metrics['matchers']['gicp']['success']:.2f}",
                 f"{run['fixes']}/{rec['fixes_in_file']}",
-                offset("capture_minus_sensor_s"),
-                offset("sensor_minus_gnss_s"),
-                offset("capture_minus_gnss_s"),
+                *(offset(clocks[key]) for key in ("capture_minus_sensor_s", "sensor_minus_gnss_s", "capture_minus_gnss_s")),
                 f"{np.median(factors[1]):.2f}x",
                 f"{np.median(factors[2]):.2f}x",
             ]
             print(" | ".join(row))
+
+
+def offset(value: float | None) -> str:
+    """A clock offset as printed (None: not measured)."""
+    return "-" if value is None else f"{value:+.3f} s"
 
 
 if __name__ == "__main__":

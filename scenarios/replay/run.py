@@ -1,6 +1,6 @@
 """`replay(recording, scenario, out_dir)`: a scenario's matchers and estimators over a real recording, no truth.
 
-The recording (a rosbag2 or ROS 1 bag, or a Velodyne HDL-32E pcap) gives the scans and fixes in
+The recording (a rosbag2 or ROS 1 bag, or a Velodyne pcap) gives the scans and fixes in
 time order; scenarios.pipeline.feed runs them through the scenario's matchers and estimators with the calls
 of a simulated run. Everything the scenario says about the world and the sensors' simulation is
 unused, except the world's geodetic origin (the ENU frame), the GNSS epoch (the time base) and the

@@ -1,6 +1,7 @@
 """Export speed per format in scans/s on charles_river (quickstart, a 30 s stretch = 300 scans): the
-whole export (simulation included, as `riverbench export` runs it) and, separately, writing only
-(the writer fed pre-simulated frames; median over rounds). Files go to a temp dir (page cache, no fsync).
+whole export (simulation included, as `riverbench export` runs it: for rosbag2 and mcap with the
+scenario's matchers and estimators) and, separately, writing only (the writer fed pre-simulated frames
+without estimates; median over rounds). Files go to a temp dir (page cache, no fsync).
 
     .venv/bin/python benchmarks/export.py [--start-s 1650] [--seconds 30] [--rounds 3]
 """

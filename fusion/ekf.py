@@ -26,9 +26,9 @@ from fusion.observation import FixObservation
 from fusion.params import MotionModelParams
 from riverbench.angles import wrap_angle
 
-X, Y, TH, V, VL, W, BX, BY, CX, CY, CTH = range(11)
-N = 11
+X, Y, TH, V, VL, W, BX, BY, CX, CY, CTH, BG = range(12)
 POSE, VEL, BIAS, CLONE = slice(0, 3), slice(3, 6), slice(6, 8), slice(8, 11)
+"""With an IMU the state has a 12th entry, BG, the yaw-rate bias of the gyro; without, the 11 of the original filter."""
 
 
 class EkfParams(MotionModelParams):
@@ -47,24 +47,34 @@ class EkfParams(MotionModelParams):
 
 
 class Ekf(Estimator):
-    """EKF over [x, y, yaw, v_forward, v_left, yaw_rate, bias_e, bias_n, clone_x, clone_y, clone_yaw]."""
+    """EKF over [x, y, yaw, v_forward, v_left, yaw_rate, bias_e, bias_n, clone_x, clone_y, clone_yaw] (+ gyro bias with an IMU).
+
+    With an IMU the yaw is propagated by the gyro's integral less the bias state, its variance grows with the gyro's
+    white noise and the bias's random walk; yaw_rate is then the latest bias-corrected gyro rate (reported, not
+    propagated). Compass headings update the yaw directly (Estimator.add_heading gates them)."""
 
     name = "ekf"
+    takes_inertial = True
 
     def __init__(self, params: EkfParams, monitor: Monitor) -> None:
         super().__init__(params, monitor)
         self.params: EkfParams = params
+        self.n = N = 12 if self.uses_imu else 11
         self.x = np.zeros(N)
         self.P = np.eye(N)
         self._bias_var = 0.0  # per-axis variance of the receiver's correlated error (from HDOP)
         self._init = False
         self._odom_gate = float(chi2.ppf(params.odom_gate_prob, 3))
+        self._bg: tuple[float, float] | None = None  # the gyro bias and its variance kept across a restart
 
     @property
     def initialized(self) -> bool:
         return self._init
 
     def _initialise(self, alignment: Alignment) -> None:
+        N = self.n
+        if self.uses_imu and self._init:  # a re-alignment keeps what the filter learnt of the gyro's bias
+            self._bg = (float(self.x[BG]), float(self.P[BG, BG]))
         self.x[:] = 0.0
         self.x[POSE] = alignment.pose
         self.P = np.zeros((N, N))
@@ -84,22 +94,39 @@ class Ekf(Estimator):
         self.P[CLONE, CLONE] = alignment.cov
         self.P[CLONE, POSE] = self.P[POSE, CLONE] = alignment.cov
         self.P[BIAS, BIAS] = np.eye(2) * self._bias_var
+        if self.uses_imu:
+            self.x[BG], self.P[BG, BG] = self._bg if self._bg is not None else (0.0, math.radians(self.inertial.gyro_bias_sigma_dps) ** 2)
         self._init = True
 
-    def _predict(self, stamp: float) -> None:
+    def _start_gyro(self) -> None:
+        if self._init:  # yaw rate no longer propagates the yaw: cut its ties to the rest
+            self.P[W, :] = 0.0
+            self.P[:, W] = 0.0
+            self.P[W, W] = math.radians(10.0) ** 2
+
+    def _predict(self, stamp: float, yaw_step: float | None = None) -> None:
         dt = stamp - self.stamp
         if dt <= 0.0:
             return
+        N = self.n
         p = self.params
         th, v, vl = self.x[TH], self.x[V], self.x[VL]
         c, s = math.cos(th), math.sin(th)
         F = np.eye(N)
         F[X, TH], F[X, V], F[X, VL] = (-v * s - vl * c) * dt, c * dt, -s * dt
         F[Y, TH], F[Y, V], F[Y, VL] = (v * c - vl * s) * dt, s * dt, c * dt
-        F[TH, W] = dt
         self.x[X] += (v * c - vl * s) * dt
         self.x[Y] += (v * s + vl * c) * dt
-        self.x[TH] = wrap_angle(th + self.x[W] * dt)
+        gyro = self._gyro_rate is not None and self.uses_imu
+        if gyro:
+            assert self._gyro_rate is not None
+            step = self._gyro_rate * dt if yaw_step is None else yaw_step
+            self.x[TH] = wrap_angle(th + step - self.x[BG] * dt)
+            self.x[W] = self._gyro_rate - self.x[BG]
+            F[TH, BG] = -dt
+        else:
+            F[TH, W] = dt
+            self.x[TH] = wrap_angle(th + self.x[W] * dt)
         Q = np.zeros((N, N))
         q_acc = np.array([p.accel_sigma**2, p.lateral_accel_sigma**2, math.radians(p.yaw_accel_sigma_deg) ** 2])
         # white acceleration integrated over dt: velocity dt, position-velocity dt^2/2, position dt^3/3
@@ -113,6 +140,9 @@ class Ekf(Estimator):
         Q[POSE, 3:6] = Qpv
         Q[3:6, POSE] = Qpv.T
         Q[3:6, 3:6] = Qvv
+        if gyro:
+            Q[TH, TH] += self._gyro_noise**2 * dt
+            Q[BG, BG] = (math.radians(self.inertial.gyro_bias_walk_dph) / 3600.0 / 60.0) ** 2 * dt
         if p.gps_correlation_s > 0:
             rho = math.exp(-dt / p.gps_correlation_s)
             F[BX, BX] = F[BY, BY] = rho
@@ -126,7 +156,7 @@ class Ekf(Estimator):
         self.x += K @ y
         self.x[TH] = wrap_angle(self.x[TH])
         self.x[CTH] = wrap_angle(self.x[CTH])
-        A = np.eye(N) - K @ H
+        A = np.eye(self.n) - K @ H
         self.P = A @ self.P @ A.T + K @ R @ K.T
         self.P = 0.5 * (self.P + self.P.T)
 
@@ -137,7 +167,7 @@ class Ekf(Estimator):
         r_t = rot2(cth).T
         d = self.x[X : Y + 1] - self.x[CX : CY + 1]
         h = np.r_[r_t @ d, wrap_angle(self.x[TH] - cth)]
-        H = np.zeros((3, N))
+        H = np.zeros((3, self.n))
         H[:2, X : Y + 1] = r_t
         H[:2, CX : CY + 1] = -r_t
         H[:2, CTH] = drot2(cth).T @ d
@@ -155,7 +185,7 @@ class Ekf(Estimator):
     def _reanchor(self, stamp: float) -> None:
         if not self._init:
             return
-        A = np.eye(N)
+        A = np.eye(self.n)
         A[CLONE, :] = 0.0
         A[CLONE, POSE] = np.eye(3)
         self.x = A @ self.x
@@ -168,7 +198,7 @@ class Ekf(Estimator):
         """Predicted antenna fix, its Jacobian and the measurement noise for this fix."""
         th = self.x[TH]
         h = self.x[X : Y + 1] + rot2(th) @ self.lever
-        H = np.zeros((2, N))
+        H = np.zeros((2, self.n))
         H[:, X : Y + 1] = np.eye(2)
         H[:, TH] = drot2(th) @ self.lever
         if not self._correlated():
@@ -218,7 +248,14 @@ class Ekf(Estimator):
     def _heading(self) -> tuple[float, float]:
         return float(self.x[TH]), float(self.P[TH, TH])
 
+    def _update_heading(self, measured: float, innovation: float, var: float) -> None:
+        H = np.zeros((1, self.n))
+        H[0, TH] = 1.0
+        self._update(np.array([innovation]), H, np.array([[var]]))
+
     def _restart(self) -> None:
+        if self.uses_imu and self._init:
+            self._bg = (float(self.x[BG]), float(self.P[BG, BG]))
         self._init = False
 
     def _pose3(self) -> np.ndarray:

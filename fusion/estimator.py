@@ -11,11 +11,15 @@ from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix
 from fusion.monitors import FixContext, Monitor
 from fusion.observation import FixObservation, screen
 from fusion.odometry import OdometryTrack
-from fusion.params import EstimatorParams
+from fusion.params import EstimatorParams, InertialParams
 from fusion.verdict import Event, Verdict
 from matcher.result import MatchResult
+from riverbench.angles import wrap_angle
+from riverbench.samples import HeadingSample, ImuSamples
 from sim.gnss_fix import GnssFix
 
+EARTH_RATE = 7.292115e-5
+"""WGS-84 Earth rotation rate, rad/s (NIMA TR8350.2)."""
 UNOBSERVED_VAR = 1e6
 """Variance (m^2) given to a match direction that carries no information."""
 HEIGHT_WALK_M2_PER_S = 0.01
@@ -29,8 +33,12 @@ class Estimator:
     name = "estimator"
     uses_odometry = True
     """False for an estimator that ignores scan matching (the drive then needs no matcher for it)."""
+    takes_inertial = False
+    """True for an estimator that can be fed IMU samples and compass headings (sensors imu, compass)."""
 
     def __init__(self, params: EstimatorParams, monitor: Monitor) -> None:
+        if not self.takes_inertial and {"imu", "compass"} & set(params.sensors):
+            raise ValueError(f"estimator '{self.name}': sensors: it uses no imu or compass (the ekf and the pf do)")
         self.params = params
         self.monitor = monitor
         self.mount = np.asarray(params.mount, dtype=float)
@@ -44,11 +52,19 @@ class Estimator:
         self._height_var = math.inf
         sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)
         self._default_odom_cov = np.diag([sxy**2, sxy**2, sxy**2, syaw**2, syaw**2, syaw**2])
+        self.inertial: InertialParams = getattr(params, "inertial", None) or InertialParams()
+        self.uses_imu = "imu" in params.sensors
         fxy, fyaw = params.odom_floor_sigma_m, math.radians(params.odom_floor_sigma_yaw_deg)
+        if self.uses_imu:
+            fyaw = math.radians(self.inertial.odom_floor_sigma_yaw_deg)
         self._odom_floor = np.diag([fxy**2, fxy**2, fyaw**2])
         self._refused_since: float | None = None  # first refused fix of an unbroken refused run
         self._ref_stamp: float | None = None
         self._last_measured: float | None = None
+        self._gyro_rate: float | None = None  # the latest measured yaw rate (rad/s): yaw follows the gyro once it is set
+        self._gyro_noise = 0.0  # its white noise density, rad/s/sqrt(Hz)
+        self._imu_last: float | None = None
+        self._heading_last = -math.inf
 
     # ---- public API -------------------------------------------------------------------------
     @property
@@ -183,6 +199,83 @@ class Estimator:
         if not self.initialized and self.params.initial_pose is not None:
             self._initialise_from_params(stamp, self.params.initial_pose)
 
+    def add_imu(self, samples: ImuSamples) -> None:
+        """Use a batch of IMU samples in time order: from the first on, yaw follows the gyro (its yaw rate, levelled with
+        the roll and pitch the accelerometer's mean over the batch shows) and a yaw-rate bias is estimated."""
+        if not len(samples):
+            return
+        if self._refuse_stamp(samples.stamp[-1], "imu"):
+            return
+        stamps = np.asarray(samples.stamp, dtype=float)
+        gyro, accel = np.asarray(samples.gyro, dtype=float), np.asarray(samples.accel, dtype=float)
+        if not (np.all(np.isfinite(stamps)) and np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel))):
+            self.events.append(Event(float(stamps[-1]), "imu", "bad field: non-finite IMU sample"))
+            return
+        f = accel.mean(axis=0)
+        roll, pitch = math.atan2(f[1], f[2]), math.atan2(-f[0], math.hypot(f[1], f[2]))
+        earth = EARTH_RATE * math.sin(math.radians(self.inertial.latitude_deg))
+        rates = (math.sin(roll) * gyro[:, 1] + math.cos(roll) * gyro[:, 2]) / math.cos(pitch) - earth
+        # each sample stands for the period that ends at its stamp; only what lies after the filter's time is new
+        starts = np.r_[
+            self._imu_last if self._imu_last is not None else stamps[0] - (np.median(np.diff(stamps)) if len(stamps) > 1 else 0.0), stamps[:-1]
+        ]
+        spans = np.clip(stamps - np.maximum(starts, self.stamp), 0.0, None)
+        noise = self.inertial.gyro_noise_dps
+        self._gyro_noise = math.radians(noise) if noise is not None else float(samples.gyro_noise)
+        self._imu_last = float(stamps[-1])
+        first = self._gyro_rate is None
+        self._gyro_rate = float(rates[-1])
+        if first:
+            self._start_gyro()
+        stamp = float(stamps[-1])
+        if self.initialized and stamp > self.stamp:
+            self._predict(stamp, float(rates @ spans))
+        self.stamp = max(self.stamp, stamp)
+        self._check_finite(stamp, "imu")
+
+    def add_heading(self, sample: HeadingSample) -> bool:
+        """Use a compass heading; False when it is not used (before initialisation, between used ones, or refused as
+        disturbed: its field differs from the undisturbed one or its innovation lies beyond the gate)."""
+        if self._refuse_stamp(getattr(sample, "stamp", math.nan), "heading"):
+            return False
+        stamp = float(sample.stamp)
+        self._advance(stamp)
+        p = self.inertial
+        if not self.initialized or not sample.finite or stamp - self._heading_last < p.compass_interval_s:
+            return False
+        if abs(sample.field_norm_ut / p.field_ut - 1.0) > p.field_tolerance or abs(sample.dip_deg - p.dip_deg) > p.dip_tolerance_deg:
+            return False
+        sigma = math.radians(p.compass_sigma_deg) if p.compass_sigma_deg is not None else float(sample.sigma)
+        heading = self._heading()
+        if heading is None:
+            return False
+        yaw, var = heading
+        innovation = wrap_angle(float(sample.yaw) - yaw)
+        if innovation**2 / (var + sigma**2) > self._compass_gate:
+            return False
+        try:
+            self._update_heading(float(sample.yaw), innovation, sigma**2)
+        except np.linalg.LinAlgError as err:
+            self.events.append(Event(stamp, "heading", f"compass update failed: {err}"))
+            return False
+        self._heading_last = stamp
+        self._check_finite(stamp, "heading")
+        return True
+
+    @property
+    def _compass_gate(self) -> float:
+        from scipy.stats import chi2
+
+        return float(chi2.ppf(self.inertial.compass_gate_prob, 1))
+
+    def _start_gyro(self) -> None:
+        """The first IMU sample arrived: yaw follows the gyro from now on."""
+        raise NotImplementedError(f"{self.name} does not use IMU samples")
+
+    def _update_heading(self, measured: float, innovation: float, var: float) -> None:
+        """Correct the heading by a compass heading `measured` (rad; `innovation` against the estimate) of variance var."""
+        raise NotImplementedError(f"{self.name} does not use compass headings")
+
     # ---- shared machinery -------------------------------------------------------------------
     def _refuse_stamp(self, stamp, source: str) -> str:
         try:
@@ -306,7 +399,8 @@ class Estimator:
     def _initialise(self, alignment: Alignment) -> None:
         raise NotImplementedError
 
-    def _predict(self, stamp: float) -> None:
+    def _predict(self, stamp: float, yaw_step: float | None = None) -> None:
+        """Propagate to `stamp`; with an IMU the yaw advances by yaw_step (the gyro's integral), else by the latest gyro rate."""
         raise NotImplementedError
 
     def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:

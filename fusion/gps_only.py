@@ -65,7 +65,7 @@ class GpsOnly(Estimator):
         self._last = obs
         self._update_height(obs)
 
-    def _predict(self, stamp: float) -> None:
+    def _predict(self, stamp: float, yaw_step: float | None = None) -> None:
         """The receiver's last output holds until the next one."""
 
     def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:

@@ -79,7 +79,7 @@ class HdopSwitch(Estimator):
             cov[:2, :2] += rot @ moved[1] @ rot.T
         return pose, cov
 
-    def _predict(self, stamp: float) -> None:
+    def _predict(self, stamp: float, yaw_step: float | None = None) -> None:
         """Dead reckoning is evaluated lazily from the odometry track."""
 
     def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:

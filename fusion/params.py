@@ -5,6 +5,9 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+SENSORS = ("gnss", "odometry", "imu", "compass")
+"""What an estimator can be fed: receiver fixes, scan-matching odometry, IMU samples, compass headings."""
+DEFAULT_SENSORS = ("gnss", "odometry")
 DEFAULT_MOUNT = ((1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 1.8), (0.0, 0.0, 0.0, 1.0))
 
 
@@ -24,6 +27,20 @@ class BaseEstimatorParams(BaseModel):
         DEFAULT_MOUNT, description="4x4 base_link<-lidar [identity rotation, lidar 1.8 m above base_link]"
     )
     antenna: tuple[float, float, float] = Field((0.0, 0.0, 1.3), description="antenna position on base_link, metres [(0, 0, 1.3)]")
+    sensors: tuple[str, ...] = Field(
+        DEFAULT_SENSORS,
+        description="what the estimator is fed: any of gnss, odometry, imu, compass [gnss, odometry: GPS and scan matching]",
+    )
+
+    @field_validator("sensors")
+    @classmethod
+    def _known_sensors(cls, sensors: tuple[str, ...]) -> tuple[str, ...]:
+        unknown = [s for s in sensors if s not in SENSORS]
+        if unknown:
+            raise ValueError(f"unknown sensor {unknown[0]!r} (known: {', '.join(SENSORS)})")
+        if len(set(sensors)) != len(sensors):
+            raise ValueError("a sensor is listed twice")
+        return tuple(sensors)
 
     @field_validator("mount")
     @classmethod
@@ -129,6 +146,70 @@ class EstimatorParams(BaseEstimatorParams):
     )
 
 
+class InertialParams(BaseModel):
+    """How the ekf and the pf use an IMU (gyro-driven yaw with a yaw-rate bias state, tilt from the accelerometer) and a
+    magnetic compass (heading updates behind an innovation gate and a check of the field against the local one)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    gyro_noise_dps: float | None = Field(
+        None, gt=0, description="gyro white noise density, deg/s/sqrt(Hz) [None: the density the IMU samples state, the datasheet's]"
+    )
+    latitude_deg: float = Field(
+        42.3539,
+        ge=-90,
+        le=90,
+        description="latitude the boat runs at, deg: the Earth's rate about the vertical there (15.04 sin(lat) deg/h) is taken off "
+        "the gyro's yaw rate, as an AHRS does [42.3539: the worlds' origin on the Charles River]",
+    )
+    gyro_bias_sigma_dps: float = Field(
+        1.0, gt=0, description="initial 1-sigma of the yaw-rate bias, deg/s [1.0: a consumer MEMS gyro's zero-rate offset, BMI088 +-1 deg/s]"
+    )
+    gyro_bias_walk_dph: float = Field(
+        60.0,
+        ge=0,
+        description="random walk of the yaw-rate bias in the filter, deg/h/sqrt(h) [60: follows an in-run bias of a few deg/h "
+        "wandering on a minute scale, the MTi-630's, and the Earth's 10 deg/h about the vertical, which the bias also takes up]",
+    )
+    odom_floor_sigma_yaw_deg: float = Field(
+        0.02,
+        ge=0,
+        description="with an IMU, the per-scan yaw noise added to every match covariance instead of the estimator's "
+        "odom_floor_sigma_yaw_deg, deg [0.02: the match's yaw now mostly tells the gyro's bias; at the 0.2 deg floor "
+        "(0.63 deg/sqrt(s)) a bias under ~30 deg/h stays hidden for a quarter of an hour and canal_lock's ekf with the "
+        "MTi-630 drifted 7 deg through its GPS-less second half (benchmarks/inertial.py)]",
+    )
+    particle_yaw_walk_dps: float = Field(
+        0.3,
+        ge=0,
+        description="pf: extra random walk of each particle's yaw on top of the gyro's noise, deg/s/sqrt(Hz) [0.3: with the gyro "
+        "alone the particles' yaws hardly spread and GPS and odometry could no longer select a better one]",
+    )
+    compass_sigma_deg: float | None = Field(None, gt=0, description="compass heading 1-sigma, deg [None: what each sample states]")
+    compass_interval_s: float = Field(
+        1.0,
+        ge=0,
+        description="use at most one compass heading per this interval, s [1.0: a compass's error (residual hard iron, tilt) is "
+        "correlated over seconds; taking every 10 Hz sample as independent would make the filter overconfident]",
+    )
+    compass_gate_prob: float = Field(
+        0.999, gt=0.5, lt=1.0, description="chi-square (1 dof) gate on a heading's innovation [0.999: refused beyond 3.3 sigma]"
+    )
+    field_ut: float = Field(
+        51.32, gt=0, description="the undisturbed field intensity the boat's configuration knows, microtesla [IGRF-14 at Boston, 2025.0]"
+    )
+    dip_deg: float = Field(66.35, ge=-90, le=90, description="the undisturbed inclination, deg [IGRF-14 at Boston, 2025.0]")
+    field_tolerance: float = Field(
+        0.02,
+        gt=0,
+        description="a heading whose field intensity differs from field_ut by more than this share is refused as disturbed "
+        "[0.02: 1 uT, about three times the residual hard iron and noise]",
+    )
+    dip_tolerance_deg: float = Field(
+        1.0, gt=0, description="a heading whose dip differs from dip_deg by more than this is refused as disturbed [1.0]"
+    )
+
+
 class MotionModelParams(EstimatorParams):
     """Vessel motion and GPS error model shared by the ekf and the pf."""
 
@@ -149,6 +230,9 @@ class MotionModelParams(EstimatorParams):
     )
     yaw_accel_sigma_deg: float = Field(3.0, gt=0, description="white-noise acceleration density of the yaw rate, deg/s^2/sqrt(Hz) [3.0]")
     gps_white_sigma_m: float = Field(0.3, gt=0, description="per-axis white part of the GPS error on top of the correlated bias, m [0.3]")
+    inertial: InertialParams | None = Field(
+        None, description="how IMU samples and compass headings are used when the estimator's sensors include imu or compass [their defaults]"
+    )
 
     def bias_variance(self, axis_var: float) -> float:
         """Per-axis variance of the receiver's correlated error, given its total per-axis variance

@@ -72,9 +72,11 @@ def _rot_batch(yaw: np.ndarray) -> np.ndarray:
 
 
 class Pf(Estimator):
-    """Particle filter over (pose, clone pose, body velocity)."""
+    """Particle filter over (pose, clone pose, body velocity); with an IMU each particle also carries a gyro yaw-rate
+    bias and its yaw follows the gyro less that bias plus the gyro's noise; a compass heading reweights the particles."""
 
     name = "pf"
+    takes_inertial = True
 
     def __init__(self, params: PfParams, monitor: Monitor) -> None:
         super().__init__(params, monitor)
@@ -90,6 +92,7 @@ class Pf(Estimator):
         self._bias_var = 0.0
         self._coast_cov = np.zeros((3, 3))  # process spread accumulated since the clone, body frame
         self._clone_stamp = 0.0
+        self.gyro_bias = np.zeros(n)  # per particle, rad/s (with an IMU)
         self._init = False
         self._q = np.array([params.accel_sigma**2, params.lateral_accel_sigma**2, math.radians(params.yaw_accel_sigma_deg) ** 2])
 
@@ -124,21 +127,33 @@ class Pf(Estimator):
         self.logw = np.full(n, -math.log(n))
         self.bias = np.zeros((n, 2))
         self.bias_cov = np.eye(2) * self._bias_var
+        if self.uses_imu and not self._init:  # a re-alignment keeps the particles' gyro biases
+            self.gyro_bias = math.radians(self.inertial.gyro_bias_sigma_dps) * self.rng.standard_normal(n)
         self._init = True
 
-    def _predict(self, stamp: float) -> None:
+    def _predict(self, stamp: float, yaw_step: float | None = None) -> None:
         dt = stamp - self.stamp
         if dt <= 0.0:
             return
         n = self.params.n_particles
         dv = self.rng.standard_normal((n, 3)) * np.sqrt(self._q * dt)
         body = (self.vel + 0.5 * dv) * dt
+        coast = np.diag(self._q) * dt**3 / 3.0
+        if self._gyro_rate is not None and self.uses_imu:
+            step = self._gyro_rate * dt if yaw_step is None else yaw_step
+            walk = math.radians(self.inertial.gyro_bias_walk_dph) / 3600.0 / 60.0
+            draw = self.rng.standard_normal((n, 2))
+            yaw_noise = math.hypot(self._gyro_noise, math.radians(self.inertial.particle_yaw_walk_dps))
+            body[:, 2] = step - self.gyro_bias * dt + yaw_noise * math.sqrt(dt) * draw[:, 0]
+            self.gyro_bias += walk * math.sqrt(dt) * draw[:, 1]
+            dv[:, 2] = self._gyro_rate - self.gyro_bias - self.vel[:, 2]
+            coast[2, 2] = yaw_noise**2 * dt
         c, s = np.cos(self.poses[:, 2]), np.sin(self.poses[:, 2])
         self.poses[:, 0] += c * body[:, 0] - s * body[:, 1]
         self.poses[:, 1] += s * body[:, 0] + c * body[:, 1]
         self.poses[:, 2] = wrap_angle(self.poses[:, 2] + body[:, 2])
         self.vel += dv
-        self._coast_cov += np.diag(self._q) * dt**3 / 3.0
+        self._coast_cov += coast
         if self._correlated():
             rho = math.exp(-dt / self.params.gps_correlation_s)
             self.bias *= rho
@@ -239,6 +254,7 @@ class Pf(Estimator):
             self.clones[:, 2] = wrap_angle(self.clones[:, 2])
             self.vel = self.vel[idx]
             self.bias = self.bias[idx]
+            self.gyro_bias = self.gyro_bias[idx]
             self.logw = np.full(n, -math.log(n))
 
     def _relock(self, obs: FixObservation) -> None:
@@ -262,6 +278,14 @@ class Pf(Estimator):
         if angular is not None:
             d[:, angular] = wrap_angle(d[:, angular])
         return mean, (d * w[:, None]).T @ d
+
+    def _start_gyro(self) -> None:
+        """Nothing to rewire: the particles' yaw follows the gyro from the next prediction on."""
+
+    def _update_heading(self, measured: float, innovation: float, var: float) -> None:
+        r = wrap_angle(measured - self.poses[:, 2])
+        self.logw += -0.5 * r**2 / var
+        self._after_weighting()
 
     def _restart(self) -> None:
         self._init = False

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import signal
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import UTC
@@ -14,9 +13,14 @@ from rich.markup import escape
 from rich.table import Table
 
 from riverbench.errors import one_line
+from riverbench.signals import StopSignals
 
-app = typer.Typer(help="riverbench: LiDAR-aided ASV positioning where GPS fails.", no_args_is_help=True)
-worlds_app = typer.Typer(help="List, inspect and export the river worlds.", no_args_is_help=True)
+PLAIN_HELP = None
+"""Typer's rich_markup_mode for every command's --help: click's plain text. Typer 0.29's rich help lists a boolean
+flag as `--fast <bool>`, as if it took a value, and reads the help texts as rich markup (eating '[fast]')."""
+
+app = typer.Typer(help="riverbench: LiDAR-aided ASV positioning where GPS fails.", no_args_is_help=True, rich_markup_mode=PLAIN_HELP)
+worlds_app = typer.Typer(help="List, inspect and export the river worlds.", no_args_is_help=True, rich_markup_mode=PLAIN_HELP)
 app.add_typer(worlds_app, name="worlds")
 console = Console()
 errors = Console(stderr=True)
@@ -50,6 +54,25 @@ def user_errors() -> Iterator[None]:
         raise typer.Exit(2) from None
 
 
+@contextmanager
+def stoppable(message: str, interrupted: tuple[type[Exception], ...] = ()) -> Iterator[StopSignals]:
+    """Ctrl-C (SIGINT) or `kill` (SIGTERM): the command unwinds, removing its temporaries, says so in one line
+    (`message`, or the text of an `interrupted` exception, e.g. a run's RunInterrupted naming the scan) and exits
+    128 + the signal's number: 130 or 143."""
+    with StopSignals() as stop:
+        try:
+            yield stop
+        except KeyboardInterrupt:
+            _stopped(stop, message)
+        except interrupted as exc:
+            _stopped(stop, str(exc))
+
+
+def _stopped(stop: StopSignals, message: str) -> None:
+    errors.print(f"[bold yellow]stopped[/] ({stop.name}): {escape(message)}", highlight=False, soft_wrap=True)
+    raise typer.Exit(stop.exit_code) from None
+
+
 @app.command()
 def preview(
     world: str = typer.Argument("charles_river", help="world preset name or mesh file"),
@@ -61,7 +84,7 @@ def preview(
     """Simulate a world along its route; write preview.png, scan.pcd and summary.json."""
     from scenarios.report.preview import run_preview
 
-    with user_errors():
+    with stoppable("preview interrupted; nothing written"), user_errors():
         summary = run_preview(world, out, n_samples=samples, seed=seed, quiet=quiet)
     ppr = summary["points_per_revolution"]
     table = Table(title=f"{world}: {summary['revolutions']} revolutions along the route")
@@ -95,7 +118,7 @@ def preview(
 
 
 @worlds_app.command("list")
-def worlds_list() -> None:
+def worlds_list(quiet: bool = typer.Option(False, "--quiet", help="the names only (what it prints anyway)")) -> None:
     """Names of the world presets."""
     import worlds
 
@@ -104,7 +127,10 @@ def worlds_list() -> None:
 
 
 @worlds_app.command("show")
-def worlds_show(name: str = typer.Argument(..., help="preset name or mesh file")) -> None:
+def worlds_show(
+    name: str = typer.Argument(..., help="preset name or mesh file"),
+    quiet: bool = typer.Option(False, "--quiet", help="the JSON only (what it prints anyway)"),
+) -> None:
     """Parts, triangles, route length and structures of a world."""
     import json
 
@@ -119,20 +145,22 @@ def worlds_show(name: str = typer.Argument(..., help="preset name or mesh file")
 def worlds_export(
     name: str = typer.Argument(..., help="preset name or mesh file"),
     file: Path = typer.Argument(..., help="output mesh file; the format follows the suffix (.ply, .obj, .glb, .stl)"),
+    quiet: bool = typer.Option(False, "--quiet", help="print nothing when it worked"),
 ) -> None:
     """Write a world's mesh to a file other tools read."""
     import worlds
 
-    with user_errors():
+    with stoppable(f"export interrupted; {file} not written"), user_errors():
         world = worlds.load(name)
         try:
             worlds.export(world, file)
         except OSError as exc:
             raise OSError(f"cannot write {file}: {exc.strerror or exc}") from exc
-    console.print(f"wrote {file}")
+    if not quiet:
+        console.print(f"wrote {file}")
 
 
-scenarios_app = typer.Typer(help="The scenario library: list scenarios, show one resolved.", no_args_is_help=True)
+scenarios_app = typer.Typer(help="The scenario library: list scenarios, show one resolved.", no_args_is_help=True, rich_markup_mode=PLAIN_HELP)
 app.add_typer(scenarios_app, name="scenarios")
 
 
@@ -144,35 +172,59 @@ def run(
     seed: int = typer.Option(None, help="the scenario's seed"),
     workers: int = typer.Option(2, min=1, help="processes: 1 runs everything in one; 2 overlaps matching and simulation"),
     no_report: bool = typer.Option(False, "--no-report", help="skip report.md, report.html and plots/"),
-    fast: bool = typer.Option(False, "--fast", help="run the scenario's short [fast] variant (what `suite --fast` runs)"),
+    fast: bool = typer.Option(
+        False, "--fast", help="run the scenario's short [fast] variant (what `suite --fast` runs); a scenario without one is an error"
+    ),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    view: bool = typer.Option(False, "--view", help="stream the run to the rerun viewer as it happens (running, else spawned); riverbench[view]"),
+    view_save: Path = typer.Option(None, "--view-save", help="write the live view to this .rrd file (open: rerun FILE); riverbench[view]"),
+    view_colour: str = typer.Option("height", "--view-colour", help="colour the viewed scan by height or intensity"),
 ) -> None:
-    """Run a scenario: write its run directory, print a summary; exit 1 when an expectation fails."""
+    """Run a scenario: write its run directory, print a summary; exit 1 when an expectation fails, 130/143 on
+    Ctrl-C/SIGTERM (nothing written)."""
     import scenarios
     from scenarios.pipeline.progress import RunProgress
-    from scenarios.pipeline.runner import RunFailed, RunInterrupted
+    from scenarios.pipeline.runner import RunFailed, RunInterrupted, default_out_dir
     from scenarios.report.summary import run_table
+    from scenarios.spec.library import load_fast
 
-    with user_errors():
-        spec = scenarios.load(scenario, set=set_, seed=seed)
-        spec = spec.fast_variant() if fast else spec
-    try:
-        with RunProgress(spec.name, console, quiet) as progress:
-            result = scenarios.run(spec, out, workers=workers, report=not no_report, progress=progress.update)
-    except RunInterrupted as exc:
-        errors.print(f"[bold yellow]stopped:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-        raise typer.Exit(130) from None
-    except RunFailed as exc:
-        errors.print(f"[bold red]run failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-        raise typer.Exit(1) from None
-    except (ValueError, OSError) as exc:
-        errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
-        raise typer.Exit(2) from None
+    with stoppable("run interrupted; nothing written", (RunInterrupted,)):
+        with user_errors():
+            spec = (load_fast if fast else scenarios.load)(scenario, set=set_, seed=seed)
+            out = out if out is not None else default_out_dir(spec)
+            observer = _live_view(view, view_save, view_colour, out) if view or view_save is not None else None
+        try:
+            with RunProgress(spec.name, console, quiet) as progress:
+                result = scenarios.run(spec, out, workers=workers, report=not no_report, progress=progress.update, observer=observer)
+        except RunFailed as exc:
+            errors.print(f"[bold red]run failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(1) from None
+        except (ValueError, OSError) as exc:
+            errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
     if not quiet:
         console.print(run_table(result))
     target = result.report if result.report.exists() else result.out_dir
     console.print(f"{'all expectations pass' if result.passed else '[bold red]expectations failed[/]'}: {target}")
     raise typer.Exit(0 if result.passed else 1)
+
+
+def _live_view(view: bool, save: Path | None, colour: str, out: Path):
+    """The run's live view (scenarios.view): one line and exit 2 without the rerun SDK; one line when --view finds no viewer."""
+    from scenarios.view import import_rerun
+
+    import_rerun()
+    from scenarios.view.live import LiveView
+    from scenarios.view.sink import FALLBACK_NAME, ViewSink, ViewTarget
+
+    sink = ViewSink(ViewTarget(viewer=view, save=save))
+    observer = LiveView(sink, colour)
+    why = sink.connect()
+    if why is not None:
+        where = save if save is not None else out / FALLBACK_NAME
+        note = f"{why}; saving the view to {where} (open it with: rerun {where})"
+        errors.print(f"[bold yellow]no viewer:[/] {escape(note)}", highlight=False, soft_wrap=True)
+    return observer
 
 
 @app.command()
@@ -205,6 +257,7 @@ def suite(
 
     import scenarios
     from riverbench import provenance
+    from scenarios.batch import outcome
     from scenarios.batch.suite import run_suite, write_junit, write_summary
     from scenarios.report.summary import regression_table, suite_table
     from scenarios.score import baseline as baselines
@@ -212,7 +265,8 @@ def suite(
     with user_errors():
         stored = baselines.load(baseline) if baseline is not None else None
         sources = list(scenario or scenarios.available())
-        names = {source: scenarios.load(source, set=set_).name for source in sources}
+        loaded = {source: scenarios.load(source, set=set_) for source in sources}
+        names = {source: spec.name for source, spec in loaded.items()}
         if stored is not None:
             fast = _as_baseline(fast, stored, baseline)
             if not set(names.values()) & set(stored.scenarios):
@@ -225,35 +279,38 @@ def suite(
 
     def done(case) -> None:
         if not quiet:
-            mark = "[green]pass[/]" if case.passed else "[bold red]FAIL[/]"
-            console.print(f"{mark} {case.label} ({case.wall_s:.0f} s){': ' + case.error if case.error else ''}", highlight=False)
+            if case.error:
+                mark = "[bold red]failed to run[/]"
+            else:
+                failed = sum(not e["pass"] for e in case.expectations)
+                mark = f"[bold red]FAIL[/] ({failed} of {len(case.expectations)} expectations)" if failed else "[green]pass[/]"
+            console.print(f"{mark} {escape(case.label)} ({case.wall_s:.0f} s){': ' + escape(case.error) if case.error else ''}", highlight=False)
 
-    signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops a suite as Ctrl-C does: scenarios stopped, no baseline half-written
-    try:
+    if fast:
+        full = sorted({spec.name for spec in loaded.values() if spec.fast is None})
+        if full:  # as the library's baseline was measured; `run --fast` and `sweep --fast` refuse such a scenario
+            console.print(f"--fast: no [fast] variant, so run in full: {', '.join(full)}", highlight=False, markup=False)
+    stopped = "suite interrupted; finished scenarios are in " + str(out) + ("; no baseline written" if save_baseline else "")
+    with stoppable(stopped):
         cases = run_suite(jobs, out, workers=workers, fast=fast, timeout_s=timeout, on_done=done)
-    except KeyboardInterrupt:
-        errors.print(
-            "[bold yellow]stopped:[/] suite interrupted; finished scenarios are in " + str(out) + ("; no baseline written" if save_baseline else ""),
-            highlight=False,
-        )
-        raise typer.Exit(130) from None
-    comparison = None
-    if stored is not None or save_baseline is not None:
-        measured = baselines.from_cases(cases, fast=fast, overrides=list(set_), provenance=provenance.collect())
-        if save_baseline is not None:
-            with user_errors():
-                measured.save(save_baseline)
-        if stored is not None:
-            from scenarios.score.regression import compare
+        comparison = None
+        if stored is not None or save_baseline is not None:
+            measured = baselines.from_cases(cases, fast=fast, overrides=list(set_), provenance=provenance.collect())
+            if save_baseline is not None:
+                with user_errors():
+                    measured.save(save_baseline)
+            if stored is not None:
+                from scenarios.score.regression import compare
 
-            comparison = compare(stored, measured)
-    write_summary(cases, out / "suite.json", comparison)
-    if junit is not None:
-        with user_errors():
-            write_junit(cases, junit, comparison)
+                comparison = compare(stored, measured)
+        write_summary(cases, out / "suite.json", comparison)
+        if junit is not None:
+            with user_errors():
+                write_junit(cases, junit, comparison)
     console.print(suite_table(cases))
-    failed = [c.label for c in cases if not c.passed]
-    console.print(f"{len(cases) - len(failed)} passed, {len(failed)} failed" + (f": {', '.join(failed)}" if failed else ""))
+    verdict = outcome.of_cases(cases)
+    for line in verdict.lines():
+        console.print(line, highlight=False, markup=False)
     if save_baseline is not None:
         broken = sum(bool(c.error) for c in cases)
         console.print(
@@ -265,9 +322,10 @@ def suite(
         from scenarios.report import compare as comparing
 
         console.print(regression_table(comparison))
-        page = comparing.write([out], out / "comparison", against=comparison)
+        with stoppable(f"comparison report interrupted; not written (suite.json is in {out})"):
+            page = comparing.write([out], out / "comparison", against=comparison)
         console.print(f"comparison report: {page}", highlight=False)
-    raise typer.Exit(1 if failed or (comparison is not None and comparison.failed) else 0)
+    raise typer.Exit(1 if not verdict.passed or (comparison is not None and comparison.failed) else 0)
 
 
 def _as_baseline(fast: bool | None, stored, path: Path) -> bool:
@@ -313,6 +371,7 @@ def compare_baselines(
     junit: Path = typer.Option(None, help="write JUnit XML here (a testcase per scenario and metric family)"),
     out: Path = typer.Option(None, help="write report.md and report.html of the comparison into this directory"),
     json_out: Path = typer.Option(None, "--json", help="write the comparison as JSON here"),
+    quiet: bool = typer.Option(False, "--quiet", help="the one-line verdict instead of the table"),
 ) -> None:
     """Compare two stored baselines without running anything; exit 1 when a metric regressed."""
     import json
@@ -323,7 +382,7 @@ def compare_baselines(
     from scenarios.score import baseline as baselines
     from scenarios.score.regression import compare
 
-    with user_errors():
+    with stoppable("comparison interrupted; nothing written"), user_errors():
         a, b = baselines.load(base), baselines.load(new)
         if a.fast != b.fast:
             raise ValueError(
@@ -342,12 +401,8 @@ def compare_baselines(
             from scenarios.report import compare as comparing
 
             console.print(f"comparison report: {comparing.write_against(comparison, out)}", highlight=False)
-    console.print(regression_table(comparison))
+    console.print(comparison.sentence() if quiet else regression_table(comparison), highlight=False)
     raise typer.Exit(1 if comparison.failed else 0)
-
-
-def _interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt
 
 
 @app.command()
@@ -355,10 +410,16 @@ def sweep(
     scenario: list[str] = typer.Argument(None, help="library names or .toml paths, every point runs on each (default: the whole library)"),
     grid: list[str] = typer.Option([], "--grid", help="key=v1,v2,... (TOML values); repeat for a cartesian grid"),
     sample: tuple[int, str] = typer.Option(
-        (0, ""), "--sample", show_default=False, help="N key=lo:hi[:log][,key2=lo:hi...]: N joint uniform (or log-uniform) draws"
+        (0, ""),
+        "--sample",
+        show_default=False,
+        help="N key=lo:hi[:log][,key2=lo:hi...]: N joint points in the keys' box (linear, or log-scaled with :log), placed by --sampler",
     ),
+    sampler: str = typer.Option("lhs", help="how --sample places its points: lhs (Latin hypercube), sobol (scrambled; N a power of 2) or random"),
+    sample_seed: int = typer.Option(0, help="seed of the --sample points"),
     seeds: int = typer.Option(1, min=1, help="repeat every point over this many seeds (the scenario's seed and the next)"),
     set_: list[str] = typer.Option([], "--set", help="fix a field for every run: key=value, repeatable"),
+    fast: bool = typer.Option(False, "--fast", help="run each scenario's short [fast] variant; a scenario without one is an error"),
     workers: int = typer.Option(2, min=1, help="runs at once (local: processes; ray: CPUs of a local Ray instance)"),
     backend: str = typer.Option("local", help="local (process pool) or ray"),
     address: str = typer.Option(None, help="address of an existing Ray cluster (default: start a local instance)"),
@@ -367,14 +428,15 @@ def sweep(
     maximize: bool = typer.Option(False, "--maximize/--minimize", help="whether a higher objective is better"),
     plot: list[str] = typer.Option([], "--plot", help="also plot this metric against each swept parameter, repeatable"),
     lean: bool = typer.Option(False, "--lean", help="skip each run's report and plots (metrics and data files are kept)"),
-    retry_failed: bool = typer.Option(False, "--retry-failed", help="run again the points whose earlier run failed"),
-    sample_seed: int = typer.Option(0, help="seed of the --sample draws"),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="run again the points whose earlier run failed to run"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar or per-run lines"),
 ) -> None:
-    """Run a parameter sweep: a results table (Parquet and CSV), a run directory per run, plots, the best parameters."""
+    """Run a parameter sweep: a results table (Parquet and CSV), a run directory per run, plots, the best parameters;
+    exit 1 when a run failed to run or failed an expectation, 130/143 on Ctrl-C/SIGTERM (the same command resumes it)."""
     from datetime import datetime
 
     import scenarios
+    from scenarios.batch import outcome
     from scenarios.batch import sweep as sweeping
     from scenarios.batch.plan import Axis, Range, SweepPlan
     from scenarios.batch.progress import SweepProgress, summary
@@ -397,6 +459,8 @@ def sweep(
             seeds=seeds,
             fixed=tuple(set_),
             sample_seed=sample_seed,
+            sampler=sampler,
+            fast=fast,
         )
         if count and not ranges:
             raise ValueError(f"--sample {count}: name what to sample, e.g. --sample {count} lidar.range_noise_m=0.01:0.05")
@@ -413,34 +477,27 @@ def sweep(
             highlight=False,
         )
     progress = SweepProgress(console, quiet)
-    signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops a sweep as Ctrl-C does: workers stopped, table consistent
-    try:
-        with progress:
-            result = sweeping.run_sweep(
-                plan,
-                out,
-                workers=workers,
-                backend=backend,
-                address=address,
-                lean=lean,
-                retry_failed=retry_failed,
-                points=points,
-                on_start=progress.start,
-                on_row=progress.row,
-            )
-    except KeyboardInterrupt:
-        errors.print(
-            f"[bold yellow]stopped:[/] sweep interrupted; the finished runs are in {out}/results.csv; the same command completes it",
-            highlight=False,
-            soft_wrap=True,
-        )
-        raise typer.Exit(130) from None
-    except (ValueError, OSError) as exc:
-        errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
-        raise typer.Exit(2) from None
-    written = sweeping.write_plots(result, plan, objective, plot)
+    with stoppable(f"sweep interrupted; the finished runs are in {out}/results.csv; the same command completes it"):
+        try:
+            with progress:
+                result = sweeping.run_sweep(
+                    plan,
+                    out,
+                    workers=workers,
+                    backend=backend,
+                    address=address,
+                    lean=lean,
+                    retry_failed=retry_failed,
+                    points=points,
+                    on_start=progress.start,
+                    on_row=progress.row,
+                )
+        except (ValueError, OSError) as exc:
+            errors.print(f"[bold red]error:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+        written = sweeping.write_plots(result, plan, objective, plot)
     console.print(summary(result, plan, objective, not maximize, written), highlight=False)
-    raise typer.Exit(1 if result.failed else 0)
+    raise typer.Exit(outcome.of_rows(result.rows).exit_code)
 
 
 @app.command()
@@ -455,7 +512,7 @@ def report(
     from scenarios.report import compare
 
     out = out or Path("runs") / f"report-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
-    with user_errors():
+    with stoppable("report interrupted; nothing written"), user_errors():
         if out.exists() and any(out.iterdir()):
             raise ValueError(f"output directory {out} exists and is not empty")
         page = compare.write(list(dirs), out)
@@ -498,16 +555,12 @@ def export(
             bar.start()
         bar.update(task, completed=done, total=total)
 
-    try:
-        with user_errors():
-            try:
-                result = exporting.export(source, format_, out, set=set_, seed=seed, progress=progress)
-            finally:
-                if bar.live.is_started:
-                    bar.stop()
-    except KeyboardInterrupt:
-        errors.print("[bold yellow]stopped:[/] export interrupted; nothing written", highlight=False)
-        raise typer.Exit(130) from None
+    with stoppable("export interrupted; nothing written"), user_errors():
+        try:
+            result = exporting.export(source, format_, out, set=set_, seed=seed, progress=progress)
+        finally:
+            if bar.live.is_started:
+                bar.stop()
     counts = ", ".join(f"{v:,} {k}" for k, v in result.counts.items())
     console.print(
         f"wrote {result.out}: {result.scans} scans{', ' + counts if counts else ''} in {result.seconds:.1f} s "
@@ -518,12 +571,19 @@ def export(
 
 @app.command()
 def replay(
-    recording: Path = typer.Argument(..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too) or a Velodyne pcap (HDL-32E, VLP-16, VLP-32C...)"),
+    recording: Path = typer.Argument(
+        ..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too), a Velodyne pcap (HDL-32E, VLP-16, VLP-32C...), or an NMEA log"
+    ),
     scenario: str = typer.Option(..., help="the scenario whose matchers, estimators, mount and world origin to use (name or .toml)"),
     set_: list[str] = typer.Option([], "--set", help="override a field of the scenario: key=value (TOML value), repeatable"),
     out: Path = typer.Option(None, help="run directory (default runs/replay-<name>-<UTC time>/)"),
     lidar_topic: str = typer.Option(None, help="the PointCloud2 topic (default: the only one)"),
     gps_topic: str = typer.Option(None, help="the NMEA Sentence or NavSatFix topic (default: the only one)"),
+    imu_topic: str = typer.Option(None, help="the sensor_msgs/Imu topic, read when an estimator is fed the IMU (default: the only one)"),
+    nmea: Path = typer.Option(None, help="an NMEA log whose fixes replace the recording's own GPS (a capture's GPRMC, a bag's GPS topic)"),
+    reference: Path = typer.Option(
+        None, help="score the estimators against this reference: a TUM file, an RTK receiver's NMEA log (quality 4/5 fixes) or a GPX track"
+    ),
     workers: int = typer.Option(1, min=1, help="processes: 2 overlaps matching with reading"),
     no_report: bool = typer.Option(False, "--no-report", help="skip report.md and report.html"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
@@ -534,45 +594,54 @@ def replay(
     from scenarios.pipeline.runner import RunFailed, RunInterrupted
     from scenarios.replay import replay as replay_recording
 
-    with user_errors():
-        if not recording.exists():
-            raise ValueError(f"{recording}: no such bag or pcap")
-        scenarios_spec = load_scenario(scenario, set=set_)
-    try:
-        with user_errors(), RunProgress(recording.name, console, quiet) as progress:
-            result = replay_recording(
-                recording,
-                scenarios_spec,
-                out,
-                lidar_topic=lidar_topic,
-                gps_topic=gps_topic,
-                workers=workers,
-                report=not no_report,
-                progress=progress.update,
-            )
-    except RunInterrupted as exc:
-        errors.print(f"[bold yellow]stopped:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-        raise typer.Exit(130) from None
-    except RunFailed as exc:
-        errors.print(f"[bold red]replay failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-        raise typer.Exit(1) from None
+    with stoppable("replay interrupted; nothing written", (RunInterrupted,)):
+        with user_errors():
+            if not recording.exists():
+                raise ValueError(f"{recording}: no such bag, pcap or NMEA log")
+            scenarios_spec = load_scenario(scenario, set=set_)
+        try:
+            with user_errors(), RunProgress(recording.name, console, quiet) as progress:
+                result = replay_recording(
+                    recording,
+                    scenarios_spec,
+                    out,
+                    lidar_topic=lidar_topic,
+                    gps_topic=gps_topic,
+                    imu_topic=imu_topic,
+                    nmea=nmea,
+                    reference=reference,
+                    workers=workers,
+                    report=not no_report,
+                    progress=progress.update,
+                )
+        except RunFailed as exc:
+            errors.print(f"[bold red]replay failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(1) from None
     target = result.report if result.report.exists() else result.out_dir
-    for warning in result.metrics["run"].get("warnings", []):
+    run = result.metrics["run"]
+    if "nmea" in run["recording"]:
+        console.print(f"NMEA: {run['recording']['nmea']['summary']}", highlight=False)
+    for warning in run.get("warnings", []):
         errors.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
-    console.print(f"replayed {result.metrics['run']['scans']} scans: {target}", highlight=False)
+    what = f"{run['fixes']} fixes (GNSS-only: no LiDAR, estimators without a matcher)" if run["gnss_only"] else f"{run['scans']} scans"
+    console.print(f"replayed {what}: {target}", highlight=False)
 
 
 @scenarios_app.command("list")
-def scenarios_list() -> None:
+def scenarios_list(quiet: bool = typer.Option(False, "--quiet", help="the names only, one a line")) -> None:
     """Names and one-line descriptions of the library's scenarios."""
     import scenarios
     from scenarios.spec.library import read
 
+    if quiet:
+        for name in scenarios.available():
+            console.print(name, highlight=False, markup=False)
+        return
     table = Table(title="scenario library")
-    table.add_column("name")
+    table.add_column("name", no_wrap=True)
     table.add_column("description")
     for name in scenarios.available():
-        table.add_row(name, str(read(name).get("description", "")))
+        table.add_row(name, escape(str(read(name).get("description", ""))))
     console.print(table)
 
 
@@ -580,20 +649,23 @@ def scenarios_list() -> None:
 def scenarios_show(
     name: str = typer.Argument(..., help="library name or .toml path"),
     set_: list[str] = typer.Option([], "--set", help="override a field: key=value"),
+    quiet: bool = typer.Option(False, "--quiet", help="the TOML only, without the heading comment"),
 ) -> None:
-    """The resolved scenario (every default filled in) as TOML: what `run` would run."""
+    """The scenario's description, then the resolved scenario (every default filled in) as TOML: what `run` would run."""
     import tomli_w
 
     import scenarios
 
     with user_errors():
         spec = scenarios.load(name, set=set_)
-    console.print(f"# {spec.name}: resolved, hash {spec.hash}", highlight=False, markup=False)
+    if not quiet:
+        console.print(f"# {spec.name}: {spec.description or '(no description)'}", highlight=False, markup=False, soft_wrap=True)
+        console.print(f"# resolved, hash {spec.hash}", highlight=False, markup=False)
     console.print(tomli_w.dumps(spec.resolved()), highlight=False, markup=False, soft_wrap=True)
 
 
 @app.command()
-def schema() -> None:
+def schema(quiet: bool = typer.Option(False, "--quiet", help="the schema only (what it prints anyway)")) -> None:
     """The JSON Schema of a scenario file (for editors and validators)."""
     import json
 

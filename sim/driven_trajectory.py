@@ -13,6 +13,7 @@ import numpy as np
 
 from riverbench.rng import stream
 from sim.dynamics import Manoeuvring, WamvDynamics
+from sim.plane_motion import PlaneMotion
 from sim.trajectory import TrajectoryConfig, VesselPoses, mount_matrix, wave_poses
 from sim.waves import WaveMotion
 
@@ -87,6 +88,21 @@ class DrivenTrajectory(VesselPoses):
             raise ValueError(f"driven trajectory: time {ts.min():.3f}..{ts.max():.3f} s outside the driven {self._t[0]:.3f}..{self._t[-1]:.3f} s")
         xy = np.stack([np.interp(ts, self._t, self._state[:, k]) for k in (0, 1)], axis=-1)
         return wave_poses(ts, xy, np.interp(ts, self._t, self._state[:, 2]), self.waves)
+
+    def plane_motion(self, ts: np.ndarray) -> PlaneMotion:
+        """Position, yaw, world velocity and acceleration and yaw rate at ts from the integrated state (body
+        velocities over ground, yaw rate; their rates of change by differences of the RK4 steps)."""
+        poses = self.poses(ts)  # checks the times
+        ts = np.atleast_1d(np.asarray(ts, dtype=float))
+        state = {k: np.interp(ts, self._t, self._state[:, k]) for k in range(6)}
+        rates = np.gradient(self._state[:, 3:6], self._t, axis=0) if len(self._t) > 1 else np.zeros((1, 3))
+        u_dot, v_dot = (np.interp(ts, self._t, rates[:, k]) for k in (0, 1))
+        yaw, u, v, r = state[2], state[3], state[4], state[5]
+        c, s = np.cos(yaw), np.sin(yaw)
+        body_accel = (u_dot - r * v, v_dot + r * u)
+        velocity = np.stack([c * u - s * v, s * u + c * v], axis=-1)
+        acceleration = np.stack([c * body_accel[0] - s * body_accel[1], s * body_accel[0] + c * body_accel[1]], axis=-1)
+        return PlaneMotion(poses[:, :2, 3], yaw, velocity, acceleration, r)
 
     def speed(self, t: float) -> float:
         """Speed over ground (m/s) at the driven time nearest t (body velocities are over ground)."""

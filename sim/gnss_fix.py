@@ -7,17 +7,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sim.nmea import fix_sentences
+from sim.nmea.systems import GPS, PRIMARY
 
 
 @dataclass(frozen=True)
 class SatelliteReport:
-    """One satellite as the receiver reports it (NMEA GSV/GSA)."""
+    """One satellite signal as the receiver reports it (NMEA GSV/GSA): its number in its system (prn: the GPS PRN,
+    GLONASS slot, Galileo/BeiDou SV id), azimuth and elevation (deg), C/N0 (dB-Hz, 0 when not tracked), whether the
+    fix used it, its system and signal (sim.nmea.systems' names; the simulated receiver is GPS L1 C/A only)."""
 
     prn: int
     az_deg: float
     el_deg: float
     snr: float
     used: bool
+    system: str = GPS
+    signal: str = PRIMARY[GPS]
 
 
 @dataclass(frozen=True)

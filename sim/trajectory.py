@@ -11,6 +11,7 @@ from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
 from riverbench.rng import stream
+from sim.plane_motion import PlaneMotion
 from sim.vessel import HullConfig, hull_mesh
 from sim.waves import WaveMotion
 from worlds.world import World
@@ -105,6 +106,30 @@ class Trajectory(VesselPoses):
         cfg = self.config
         w = 2.0 * np.pi / cfg.speed_period_s
         return cfg.speed_mps * (1.0 + cfg.speed_variation * np.sin(w * np.asarray(t, dtype=float) + self._speed_phase))
+
+    def plane_motion(self, ts: np.ndarray) -> PlaneMotion:
+        """Position, yaw and their exact time derivatives at ts: the speed profile's and the route's (heading linear
+        between route vertices, so the curvature is the heading's slope there) differentiated analytically."""
+        ts = np.atleast_1d(np.asarray(ts, dtype=float))
+        self._check_times(ts)
+        cfg = self.config
+        station = self.station(ts)
+        xy, yaw = self.route.at(station)
+        s = self.route.s
+        i = np.clip(np.searchsorted(s, station, side="right") - 1, 0, len(s) - 2)
+        inside = (station >= 0.0) & (station <= self.route.length)
+        curvature = np.where(inside, (self.route.heading[i + 1] - self.route.heading[i]) / (s[i + 1] - s[i]), 0.0)
+        w = 2.0 * np.pi / cfg.speed_period_s
+        speed = np.where(inside, self.speed(ts), 0.0)
+        speed_dot = np.where(inside, cfg.speed_mps * cfg.speed_variation * w * np.cos(w * ts + self._speed_phase), 0.0)
+        tangent = np.stack([np.cos(yaw), np.sin(yaw)], axis=-1)
+        normal = np.stack([-np.sin(yaw), np.cos(yaw)], axis=-1)
+        scale = 1.0 - cfg.lateral_offset_m * curvature  # an offset path is longer outside a bend, shorter inside
+        if cfg.lateral_offset_m:
+            xy = xy + cfg.lateral_offset_m * normal
+        velocity = (speed * scale)[:, None] * tangent
+        acceleration = (speed_dot * scale)[:, None] * tangent + (speed**2 * scale * curvature)[:, None] * normal
+        return PlaneMotion(xy, yaw, velocity, acceleration, curvature * speed)
 
     def poses(self, ts: np.ndarray) -> np.ndarray:
         """(N, 4, 4) world<-base_link at times ts (N,), vectorised."""

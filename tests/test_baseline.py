@@ -42,6 +42,15 @@ def test_bit_identical_values_are_unchanged_and_flagged_identical():
     assert v.verdict == "unchanged" and v.identical and v.change == 0.0
 
 
+def test_values_are_compared_at_the_precision_metrics_json_publishes():
+    """A baseline stored before metrics.json was rounded (scenarios.score.units) stays valid: a run that reproduces it is identical."""
+    unrounded = [3.123449, 2.9, 3.40004, 3.0, 3.2]
+    v = judge("s", APE, SEEDS, unrounded, [round(x, 4) for x in unrounded])
+    assert v.verdict == "unchanged" and v.identical
+    assert judge("s", "gps.error.p95", SEEDS, [2.73407854] * 5, [2.7341] * 5).identical  # no direction: not even 'changed'
+    assert not judge("s", "gps.error.p95", SEEDS, [2.7340] * 5, [2.7341] * 5).identical
+
+
 def test_a_worse_value_on_every_seed_is_a_regression_and_a_better_one_an_improvement():
     base = [3.1, 2.9, 3.4, 3.0, 3.2]
     worse = judge("s", APE, SEEDS, base, [b * 1.5 for b in base])
@@ -180,3 +189,22 @@ def test_compare_baselines_exits_1_on_a_regression_0_otherwise_and_writes_json_a
     assert result.exit_code == 0 and "improved" in result.output
     result = runner.invoke(app, ["compare-baselines", str(base), str(base)])
     assert result.exit_code == 0
+
+
+def test_the_committed_baseline_stays_valid_for_runs_that_publish_rounded_metrics():
+    """Every metric of benchmarks/baseline/library.json has a unit, and runs reproducing it, rounded as metrics.json
+    now writes them, are judged bit-identical: rounding moves no verdict."""
+    from pathlib import Path
+
+    from scenarios.score import units
+
+    base = baselines.load(Path(__file__).resolve().parent.parent / "benchmarks" / "baseline" / "library.json")
+    now = base.model_copy(deep=True)
+    for runs in now.scenarios.values():
+        for metric, values in runs.metrics.items():
+            quantity = units.quantity_of(metric)
+            assert quantity is not None, metric
+            if quantity.decimals is not None:
+                runs.metrics[metric] = [None if v is None else round(v, quantity.decimals) for v in values]
+    counts = compare(base, now).counts()
+    assert counts["unchanged"] == counts["identical"] > 1000 and not counts["regressed"] + counts["improved"] + counts["changed"]

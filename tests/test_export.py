@@ -206,8 +206,8 @@ def test_non_empty_output_directory_is_refused_and_kept(tmp_path):
 def patch_frames(monkeypatch, wrap):
     """Make export() read its frames through `wrap(frames, info)`."""
 
-    def patched(scenario):
-        info, frames = open_stream(scenario)
+    def patched(scenario, estimates=False):
+        info, frames = open_stream(scenario, estimates)
         return info, wrap(frames, info)
 
     monkeypatch.setattr(export_module, "open_stream", patched)

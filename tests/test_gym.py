@@ -59,22 +59,36 @@ def test_the_observation_is_what_the_boat_knows_and_info_the_truth():
     for _ in range(15):
         obs, reward, terminated, truncated, info = env.step(np.array([0.78, 0.78], np.float32))
     assert obs["lidar"].shape == (32, 36) and obs["gps_quality"] == 1 and obs["estimate_valid"] in (0, 1)
-    assert {"true_pose", "true_cross_track_m", "clearance_m", "outcome"} <= set(info)
+    assert {"true_pose", "true_cross_track_m", "clearance_m"} <= set(info)
     assert not set(obs) & {"true_pose", "clearance_m"}
     # straight ahead at cruise on open water: about 0.2 m gained per step, reward ~= progress
     assert info["true_station_m"] == pytest.approx(100.0 + 15 * 0.2, abs=0.5)
     assert 0.1 < reward < 0.3
 
 
-def test_the_episode_terminates_at_the_end_of_the_stretch():
+def test_the_episode_terminates_at_the_end_of_the_stretch_and_only_then_has_an_outcome():
     env = make()
-    env.reset(seed=0)
+    _, info = env.reset(seed=0)
+    outcomes = [info.get("outcome")]
     terminated = truncated = False
-    steps = 0
     while not (terminated or truncated):
         _, _, terminated, truncated, info = env.step(np.array([1.0, 1.0], np.float32))
-        steps += 1
-    assert terminated and info["outcome"] == "completed" and 30 < steps < 60  # 10 m at up to 2.4 m/s
+        outcomes.append(info.get("outcome"))
+    assert terminated and not truncated and info["outcome"] == "completed" and 30 < len(outcomes) - 1 < 60  # 10 m at up to 2.4 m/s
+    assert outcomes[:-1] == [None] * (len(outcomes) - 1)  # mid-episode no outcome (it used to say "interrupted")
+
+
+def test_an_episode_that_runs_out_of_time_is_truncated_with_that_outcome_at_its_last_step_only():
+    env = make()
+    env.reset(seed=0)
+    infos = []
+    terminated = truncated = False
+    while not (terminated or truncated):
+        _, _, terminated, truncated, info = env.step(np.zeros(2, np.float32))  # thrusters off: the boat drifts to a stop
+        infos.append(info)
+    assert truncated and not terminated and infos[-1]["outcome"] == "time_limit"
+    assert not any("outcome" in i for i in infos[:-1])
+    env.close()
 
 
 def test_sync_and_async_vector_envs_step_in_lockstep():

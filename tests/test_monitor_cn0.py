@@ -233,3 +233,79 @@ def test_combined_cn0_is_registered_and_the_ekf_default():
     snr[2] -= NLOS_LOSS_DB
     verdict = est.add_fix(make_fix(60.0, el, snr))
     assert not verdict.trusted and "cn0: C/N0 deficit" in verdict.reason and "PRN 3" in verdict.reason
+
+
+# ------------------------------------------------------------------------- real receivers: several constellations and signals
+
+SIGNALS = (("GPS", "L1 C/A", 0.0, 8), ("GLONASS", "L1OF", -3.0, 7), ("Galileo", "E1-BC", 2.0, 6))
+"""(system, signal, its true C/N0 offset from GPS L1 C/A (dB), satellites per epoch) of a synthetic multi-GNSS receiver."""
+
+
+def multi_fix(t: float, rng, nlos: tuple[str, int] | None = None, loss_db: float = NLOS_LOSS_DB) -> GnssFix:
+    """A multi-GNSS fix: each signal's satellites at random elevations, direct (its own offset, 1 dB jitter) but `nlos`."""
+    sats = []
+    for system, signal, offset, n in SIGNALS:
+        el = rng.uniform(5.0, 88.0, n)
+        snr = direct_cn0(el, rng, offset)
+        if nlos is not None and nlos[0] == system:
+            snr[nlos[1]] -= loss_db
+        sats += [SatelliteReport(k + 1, float(45 * k % 360), float(e), float(c), True, system, signal) for k, (e, c) in enumerate(zip(el, snr))]
+    return GnssFix(
+        stamp=t, lat=42.35, lon=-71.11, alt=0.0, enu=np.zeros(3), quality=1, num_sats=len(sats), hdop=1.0, vdop=1.5, pdop=1.8, sats=tuple(sats)
+    )
+
+
+def test_gps_l1_only_reports_take_the_single_template_path():
+    """The simulator's receiver (GPS L1 C/A only): per-signal expectations change nothing, to the last bit."""
+    a, b = monitors.create("cn0"), monitors.create("cn0", per_signal=False)
+    for t, el, snr in clean_epochs(np.random.default_rng(10), 600, nlos_share=0.1):
+        va, vb = feed(a, make_fix(t, el, snr)), feed(b, make_fix(t, el, snr))
+        assert (va.trusted, va.reason) == (vb.trusted, vb.reason)
+        assert va.statistic == vb.statistic or (math.isnan(va.statistic) and math.isnan(vb.statistic))
+    assert a.template(30.0) == b.template(30.0) and a.offsets() == {"GPS L1 C/A": 0.0}
+
+
+def test_each_signals_offset_is_learned_clean_fixes_pass_and_reflections_are_caught():
+    rng = np.random.default_rng(11)
+    after, before = monitors.create("cn0"), monitors.create("cn0", per_signal=False)
+    for k in range(300):
+        fix = multi_fix(0.2 * k, rng)
+        feed(after, fix), feed(before, fix)
+    learned = after.offsets()
+    for system, signal, offset, _ in SIGNALS:
+        assert learned[f"{system} {signal}"] == pytest.approx(offset, abs=0.6)
+    assert after.template(30.0)[1] < 1.2 < 1.5 < before.template(30.0)[1]  # one template for all: the offsets look like jitter
+    flagged = lambda mon, fixes: np.mean([not mon.check(screen(f, 3.0, False)[0], CTX).trusted for f in fixes])
+    assert flagged(after, [multi_fix(100.0 + 0.2 * k, rng) for k in range(400)]) < 0.01
+    for system, *_ in SIGNALS:
+        reflected = [multi_fix(100.0, rng, nlos=(system, 0)) for _ in range(200)]
+        assert flagged(after, reflected) > 0.95, system
+    assert flagged(before, [multi_fix(100.0, rng, nlos=("Galileo", 0)) for _ in range(200)]) < 0.5  # measured 7 %
+
+
+def test_a_reflected_glonass_signal_is_still_caught():
+    rng = np.random.default_rng(12)
+    mon = monitors.create("cn0")
+    for k in range(300):
+        feed(mon, multi_fix(0.2 * k, rng))
+    verdict = mon.check(screen(multi_fix(100.0, rng, nlos=("GLONASS", 2)), 3.0, False)[0], CTX)
+    assert not verdict.trusted and "GLONASS 3 L1OF" in verdict.reason
+
+
+def test_prior_offsets_stand_until_a_signal_is_learned():
+    mon = monitors.create("cn0", min_samples_per_signal=10_000)  # never learned
+    rng = np.random.default_rng(13)
+    for k in range(300):
+        feed(mon, multi_fix(0.2 * k, rng))
+    assert mon.offsets()["GLONASS L1OF"] == -2.5 and mon.offsets()["Galileo E1-BC"] == 1.5
+
+
+def test_a_receiver_profile_judges_from_the_first_fix():
+    mon = monitors.create("cn0", profile_template=[HORIZON_DBHZ, ZENITH_DBHZ - HORIZON_DBHZ, JITTER_DB])
+    rng = np.random.default_rng(14)
+    el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
+    snr = direct_cn0(el, rng)
+    assert feed(mon, make_fix(0.0, el, snr)).trusted
+    snr[3] -= NLOS_LOSS_DB
+    verdict = feed(mon, make_fix(10.0, el, snr))
+    assert not verdict.trusted and "PRN 4" in verdict.reason

@@ -1,4 +1,4 @@
-"""NMEA 0183 output: checksums, field formats, and a round trip through the parser."""
+"""NMEA 0183 output: checksums, field formats, and a round trip through the reader (sim.nmea.read, sim.nmea.epochs)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ from hypothesis import strategies as st
 from sim import nmea
 from sim.gnss import GnssReceiver
 from sim.gnss_fix import GnssFix, SatelliteReport
+from sim.nmea.epochs import Epoch, Line, assemble
+from sim.nmea.read import Gsa, Gsv, Rmc, read
 
 
 def test_checksum_of_the_classic_example():
@@ -46,11 +48,16 @@ def test_receiver_epoch_sentences_are_valid_and_parse_back():
     for line in lines:
         body, cs = line[1:].split("*")
         assert cs == nmea.checksum(body) and len(line) <= 82
-    back = nmea.parse_epoch(lines)
-    assert back["lat"] == pytest.approx(fix.lat, abs=1e-7) and back["lon"] == pytest.approx(fix.lon, abs=1e-7)
-    assert back["quality"] == 1 and back["num_sats"] == fix.num_sats
-    assert back["speed_mps"] == pytest.approx(fix.speed_mps, abs=1e-3)
-    assert back["utc"] == datetime.fromisoformat(fix.utc)
+    back = epoch(lines)
+    assert back.lat == pytest.approx(fix.lat, abs=1e-7) and back.lon == pytest.approx(fix.lon, abs=1e-7)
+    assert back.quality == 1 and back.num_sats == fix.num_sats
+    assert back.speed_mps == pytest.approx(fix.speed_mps, abs=1e-3)
+    assert back.utc(back.date) == datetime.fromisoformat(fix.utc)
+
+
+def epoch(lines: list[str]) -> Epoch:
+    """One epoch's sentences read and merged."""
+    return assemble([Line(k, line, read(line)) for k, line in enumerate(lines)])
 
 
 def _fix(lat, lon, alt, when, quality, sats, hdop, speed, course) -> GnssFix:
@@ -104,24 +111,28 @@ def test_round_trip_over_positions_times_and_satellites(lat, lon, alt, seconds, 
     when = datetime(2024, 1, 1, tzinfo=UTC) + timedelta(seconds=seconds)
     fix = _fix(lat, lon, alt, when, quality, sats, hdop, speed, course)
     lines = fix.nmea()
-    back = nmea.parse_epoch(lines)
-    assert abs(back["utc"] - when) <= timedelta(milliseconds=5)
-    assert back["quality"] == quality and back["num_sats"] == fix.num_sats
+    back = epoch(lines)
+    rmc, gsa, gsvs = read(lines[1]), read(lines[2]), [read(line) for line in lines[3:]]
+    assert isinstance(rmc, Rmc) and isinstance(gsa, Gsa) and all(isinstance(g, Gsv) for g in gsvs)
+    assert abs(back.utc(back.date) - when) <= timedelta(milliseconds=5)
+    assert back.quality == quality and back.num_sats == fix.num_sats
     if quality:
         tol = 0.5e-5 / 60 + 1e-12  # 5 decimals of arc minutes
-        assert abs(back["lat"] - lat) <= tol and abs(back["lon"] - lon) <= tol
-        assert back["alt"] == pytest.approx(alt, abs=0.005 + 1e-9)
-        assert back["speed_mps"] == pytest.approx(speed, abs=0.0005 * nmea.KNOT_MPS + 1e-9)
-        assert back["course_deg"] == pytest.approx(course, abs=0.005 + 1e-9)
-        assert back["mode"] == {1: "A", 6: "E"}[quality]
+        assert abs(back.lat - lat) <= tol and abs(back.lon - lon) <= tol
+        assert back.alt == pytest.approx(alt, abs=0.005 + 1e-9)
+        assert back.speed_mps == pytest.approx(speed, abs=0.0005 * nmea.KNOT_MPS + 1e-9)
+        assert back.course_deg == pytest.approx(course, abs=0.005 + 1e-9)
+        assert rmc.mode == {1: "A", 6: "E"}[quality]
     else:
-        assert math.isnan(back["lat"]) and math.isnan(back["lon"]) and back["mode"] == "N"
+        assert math.isnan(back.lat) and math.isnan(back.lon) and rmc.mode == "N"
     if fix.num_sats >= 4:
-        assert back["hdop"] == pytest.approx(hdop, abs=0.005 + 1e-9)
-    assert back["used"] == [s.prn for s in sats if s.used][:12]
-    assert back["in_view"] == len(sats)
+        assert back.hdop == pytest.approx(hdop, abs=0.005 + 1e-9)
+    assert gsa.prns == [s.prn for s in sats if s.used][:12]
+    assert gsvs[0].in_view == len(sats)
     expected = sorted((s.prn, round(s.el_deg), round(s.az_deg) % 360, round(s.snr) if s.snr > 0 else None) for s in sats)
-    assert back["sats"] == expected
+    assert [tuple(slot) for g in gsvs for slot in g.sats] == expected
+    assert [(s.svid, s.el_deg, s.az_deg) for s in back.sats] == [x[:3] for x in expected]
+    assert [s.used for s in back.sats] == [s.svid in gsa.prns for s in back.sats]
     for line in lines:
         body, cs = line[1:].split("*")
         assert cs == nmea.checksum(body)

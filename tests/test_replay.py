@@ -9,6 +9,7 @@ import math
 import shutil
 import struct
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,6 +29,7 @@ from scenarios.report.plots import read_csv
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix, SatelliteReport
 from sim.lidar import HDL32E_ELEVATION_DEG
+from sim.nmea.epochs import Splitter
 
 STRETCH = "stretch={start_m = 350.0, end_m = 356.0}"  # canal_multipath: 3.1 s, 31 scans, 16 fixes (NLOS, 14 m off)
 SMOOTHED = ("hdop_switch", "ekf", "pf")
@@ -114,11 +116,31 @@ def test_bag_replay_gives_the_simulated_estimates(recorded):
     assert (out / "gps.nmea").read_bytes() == (run / "gps.nmea").read_bytes()  # the recorded sentences, verbatim
 
 
+def test_the_bag_exported_from_the_run_carries_its_estimates(recorded):
+    """`riverbench export RUN_DIR`: each estimator's nav_msgs/Odometry topic is the run's <id>.tum, pose for pose."""
+    run, scenario = recorded["run"], recorded["scenario"]
+    with AnyReader([recorded["root"] / "bag"]) as reader:
+        for eid in ids(scenario)[0]:
+            connections = [c for c in reader.connections if c.topic == f"/riverbench/{eid}/odom"]
+            odometry_msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=connections)]
+            want = tum(run / f"{eid}.tum")
+            got = np.array(
+                [[*(getattr(m.pose.pose.position, a) for a in "xyz"), *(getattr(m.pose.pose.orientation, a) for a in "xyzw")] for m in odometry_msgs]
+            )
+            assert len(want) >= 30 and got.shape == want[:, 1:].shape
+            stamps = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in odometry_msgs])
+            np.testing.assert_allclose(stamps, want[:, 0], rtol=0, atol=1e-6)  # both UNIX time (TUM: 9 decimals)
+            # the TUM file's print precision (1 um, 1e-9); its z is the waterline (0), the Odometry's the estimate's height
+            np.testing.assert_allclose(got[:, [0, 1, 3, 4, 5, 6]], want[:, [1, 2, 4, 5, 6, 7]], rtol=0, atol=1.5e-6)
+            assert np.all(want[:, 3] == 0)
+
+
 def test_pcap_replay_within_its_quantisation(recorded):
     run, out = recorded["run"], recorded["pcap"].out_dir
     for mid in ids(recorded["scenario"])[1]:
         want, got = tum(run / f"{mid}.tum"), tum(out / f"{mid}.tum")
-        np.testing.assert_array_equal(got[:, 0], want[:, 0])  # scans cut at the revolution start, stamped to the microsecond
+        # scans cut at the revolution start, stamped to the microsecond (the run's files carry nanoseconds)
+        np.testing.assert_array_equal(*(np.round(files.read_tum(d / f"{mid}.tum", scenario_time=True)[:, 0] * 1e6) for d in (run, out)))
         a, b = odometry(want), odometry(got)
         # measured 5.7 cm over the 6 m (3.0 mm before gicp's co-moving screen: on a few points at the canal's edges the
         # 2 mm range and 0.01 deg azimuth quantisation flips its static/moving-with-the-sensor decision)
@@ -214,10 +236,13 @@ def test_topics_picked_as_kiss_icp_picks_them(recorded, tmp_path):
     assert picked.recording.lidar_source == "/points_raw" and picked.metrics["run"]["scans"] == 6 and picked.metrics["run"]["workers"] == 2
     want = odometry(tum(recorded["run"] / "gicp.tum")[:6])
     np.testing.assert_allclose(odometry(tum(picked.out_dir / "gicp.tum")), want, rtol=0, atol=2e-6)
-    # NavSatFix alone: positions and HDOP exact, no satellites: gps_only as simulated
+    # NavSatFix alone: positions and HDOP exact, no satellites: gps_only as simulated in x, y and orientation. Not in z:
+    # nmea_navsat_driver's NavSatFix carries no VDOP (its up variance is (4 HDOP EPE)^2), so the height filter weighs
+    # its default 2 HDOP instead of the receiver's VDOP (measured 4e-5 m off)
     navsat = replay(bag, scenario, tmp_path / "navsat", lidar_topic="/velodyne_points", gps_topic="/gps/fix", report=False)
     want, got = tum(recorded["run"] / "gps_only.tum"), tum(navsat.out_dir / "gps_only.tum")
-    np.testing.assert_allclose(got[:, 1:], want[: len(got), 1:], rtol=0, atol=1.5e-6)
+    horizontal_and_orientation = [1, 2, 4, 5, 6, 7]
+    np.testing.assert_allclose(got[:, horizontal_and_orientation], want[: len(got), horizontal_and_orientation], rtol=0, atol=1.5e-6)
     assert not (navsat.out_dir / "gps.nmea").exists()
 
 
@@ -235,7 +260,7 @@ def test_bad_input_is_one_line_and_writes_nothing(recorded, tmp_path):
         writer.write(log, 1, bytes(store.serialize_cdr(store.types["std_msgs/msg/String"](data="hello"), "std_msgs/msg/String")))
     cases = [
         ("missing", None, "no such bag"),
-        ("no_points", None, r"no_points: no PointCloud2 topic$"),
+        ("no_points", None, r"no_points: no Sentence or NavSatFix topic$"),  # without a cloud it would replay GNSS-only
         ("notes.txt", None, "not a readable bag"),
         ("empty", None, "not a readable bag"),
         ("header.pcap", None, "no Velodyne data packets"),
@@ -263,7 +288,7 @@ def test_a_bad_scan_is_a_recorded_failure(recorded, tmp_path):
     assert result.metrics["run"]["scans"] == 5
     [failure] = result.metrics["run"]["failures"]
     assert failure["component"] == "scan" and failure["id"] == "/velodyne_points" and "no field x" in failure["reason"]
-    assert failure["stamp"] == pytest.approx(tum(recorded["run"] / "gicp.tum")[2, 0], abs=1e-6)
+    assert failure["stamp"] == pytest.approx(files.read_tum(recorded["run"] / "gicp.tum", scenario_time=True)[2, 0], abs=1e-6)
 
 
 def cloud(points: np.ndarray, ns: int = 5_000_000_000):
@@ -338,10 +363,10 @@ def test_nmea_and_rmc_read_back():
         rmc = fixes.from_nmea(12.5, [sim.nmea.rmc(dataclasses.replace(fix, quality=quality))], geo)
         assert rmc.quality == quality and (rmc.hdop == fixes.NOMINAL_HDOP)
         assert abs(rmc.enu[2]) < 0.01 if quality else np.isnan(rmc.enu).all()  # no altitude: the origin's height
-    epochs = fixes.Epochs()
+    epochs = Splitter()
     lines = fix.nmea() + fixes_later(fix).nmea()
-    closed = [epochs.add(k, line) for k, line in enumerate(lines)]
-    assert [c for c in closed if c] == [(list(range(4)), fix.nmea())] and epochs.close() == (list(range(4, 8)), lines[4:])
+    closed = [[(x.tag, x.text) for x in c] for c in (epochs.add(k, line) for k, line in enumerate(lines)) if c]
+    assert closed == [list(enumerate(fix.nmea()))] and [(x.tag, x.text) for x in epochs.close()] == list(enumerate(lines))[4:]
 
 
 def fixes_later(fix: GnssFix) -> GnssFix:
@@ -378,8 +403,27 @@ def test_the_replay_command_writes_a_run_directory_and_refuses_bad_input_in_one_
     assert ok.returncode == 0, ok.stderr
     assert "replayed 10 scans" in ok.stdout and (tmp_path / "run" / "gicp.tum").exists()
     for args, message in (
-        (["nothing", "--scenario", "canal_multipath"], "no such bag or pcap"),
+        (["nothing", "--scenario", "canal_multipath"], "no such bag, pcap or NMEA log"),
         (["bag", "--scenario", "canal_multipath", "--lidar-topic", "/x"], "/x"),
     ):
         bad = subprocess.run([*cli, *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert bad.returncode == 2 and message in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_a_capture_takes_its_gps_from_an_nmea_log(recorded, tmp_path):
+    """`--nmea`: the run's own NMEA log (GGA, RMC, GSA, GSV) replaces the capture's GPRMC; a log of another day is refused."""
+    run = recorded["run"]
+    result = replay(recorded["root"] / "run.pcap", recorded["scenario"], tmp_path / "out", nmea=run / "gps.nmea", report=False)
+    assert result.recording.gps_source.startswith("NMEA log gps.nmea") and result.metrics["run"]["recording"]["nmea"]["epochs"] == 16
+    sim_fixes, got = read_csv(run / "gps.csv"), read_csv(result.out_dir / "gps.csv")
+    assert np.abs(got["t"] - sim_fixes["t"]).max() <= 0.0051  # NMEA's 0.01 s
+    np.testing.assert_array_equal(got["quality"], sim_fixes["quality"])
+    np.testing.assert_array_equal(got["num_sats"], sim_fixes["num_sats"])
+    np.testing.assert_allclose(got["hdop"], sim_fixes["hdop"], atol=0.005)  # GGA's 2 decimals, not the capture's nominal HDOP
+    assert np.hypot(got["e"] - sim_fixes["e"], got["n"] - sim_fixes["n"]).max() < 0.015
+    rtk = Path(__file__).parent / "data" / "nmea" / "nmea_navsat_driver_rtk_nmea.log"
+    with pytest.raises(ValueError, match="do not overlap") as error:
+        replay(recorded["root"] / "run.pcap", recorded["scenario"], tmp_path / "other", nmea=rtk)
+    assert "\n" not in str(error.value) and not (tmp_path / "other").exists()
+    with pytest.raises(ValueError, match="has none"):
+        replay(rtk, recorded["scenario"], tmp_path / "alone", nmea=rtk)

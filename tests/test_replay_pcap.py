@@ -21,9 +21,10 @@ import velodyne_decoder as vd
 from velodyne_streams import ranges, stream
 
 import scenarios
+from riverbench.unixtime import unix_ns
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import pcap, replay
-from scenarios.replay.recording import Place, RecordedFix, unix_ns
+from scenarios.replay.recording import Place, RecordedFix
 from scenarios.replay.velodyne import BY_NAME, MODELS, Evidence, identify
 from sim.lidar import HDL32E_ELEVATION_DEG
 
@@ -105,7 +106,7 @@ def test_the_hdl32e_captures_clocks_are_measured_and_every_fix_is_on_the_timelin
     fixes = [e for e in events if isinstance(e, RecordedFix)]
     assert recording.facts["fixes_in_file"] == len(fixes) == 2  # 22:06:32 (in the first packet, 1.2 s old) and 22:06:33
     assert [f.stamp for f in fixes] == [0.0, 1.0] and recording.geo.zero_ns == epoch - 10**9  # time zero: the first fix's epoch
-    assert [f.fix.quality for f in fixes] == [1, 1] and recording.geo.origin_source == "first fix"
+    assert [f.fix.quality for f in fixes] == [2, 2] and recording.geo.origin_source == "first fix"  # RMC mode D: differential
     # scans on GNSS time: the sensor's clock less its offset; the recording spans the data packets, after the first fix
     first_us = data[0][1]
     assert recording.t_start == pytest.approx((sensor_ns(first_us) - epoch) / 1e9 - sensor_minus_gnss + 1.0, abs=1e-9)
@@ -187,7 +188,7 @@ def test_a_real_capture_replays_with_the_default_stack_and_says_what_it_found(tm
     gicp = result.metrics["matchers"]["gicp"]
     assert gicp["success"] == 1.0 and gicp["gated"] == 0.0  # no partial revolution left to gate the whole ones
     assert run["recording"]["time_zero_utc"] == "2012-12-11T22:06:32+00:00" and 0.35 < run["t_start"] < run["t_end"] < 1.1
-    assert run["realtime_factor"] == pytest.approx(run["duration_s"] / run["wall_s"]) and run["duration_s"] == pytest.approx(0.66, abs=0.01)
+    assert run["realtime_factor"] == pytest.approx(run["duration_s"] / run["wall_s"], abs=0.05) and run["duration_s"] == pytest.approx(0.66, abs=0.01)
     assert run["anchor"] == {"estimator": "gps_only", "t": pytest.approx(run["t_start"], abs=0.1), "heading": "none"}  # parked
     report = (result.out_dir / "report.md").read_text()
     assert "clocks: capture − sensor +0.919 s, sensor − GNSS +0.848 s, capture − GNSS +1.767 s (GNSS offsets from 1 GPRMC arrivals)" in report

@@ -12,6 +12,7 @@ import re
 import numpy as np
 import pytest
 
+from scenarios.report import document
 from scenarios.report import run_report as report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -285,7 +286,7 @@ def test_markdown_holds_expectations_tables_and_plot_links(run_dir):
     text = (run_dir / "report.md").read_text()
     assert text.startswith("# riverbench report: synthetic\n")
     assert "a straight line with one bridge" in text and "seed 3" in text and "0123456789abcdef" in text
-    assert "| estimators.ekf.ape.p95 < 6 | 1 | PASS |" in text
+    assert "| estimators.ekf.ape.p95 < 6 | 1 | m | PASS |" in text  # the unit of metrics.json's units block
     assert "estimators.gps_only.ape.max < 5" in text and "**FAIL**" in text and "expected < 5" in text
     for stem in PLOTS:
         assert f"](plots/{stem}.png)" in text
@@ -301,7 +302,7 @@ def test_best_value_per_column_is_bold_and_nulls_are_dashes(run_dir):
     assert ekf_rows[0].split("|")[3].strip() == f"**{OFFSET_M:.2f}**"  # APE rmse: the 1 m offset beats the blackout's drift
     assert "**" not in gps_only_rows[0].split("|")[3]
     assert ekf_rows[1].split("|")[2].strip() == "**1.00**"  # blackout max
-    assert gps_only_rows[1].endswith("| none | – | – |")  # no monitor: no recall, no false alarms
+    assert gps_only_rows[1].endswith("| none | – | – | – |")  # no monitor: no faulty count, no recall, no false alarms
     gps_shares = text.split("## GPS\n")[1].strip().split("\n\n")[0]
     assert gps_shares.endswith("| – |")  # faulty_5m is null
 
@@ -346,3 +347,85 @@ def test_a_run_without_matchers_windows_or_expectations(tmp_path):
     assert sorted(p.stem for p in (out / "plots").iterdir()) == ["error", "hdop_error", "map", "yaw"]
     text = (out / "report.md").read_text()
     assert "sets no expectations" in text and "No blackout" in text and "Scan matchers" not in text
+
+
+def degradation_table(monitors: dict[str, tuple[str, dict | None]]) -> document.Table:
+    """The run report's 'Through GPS degradation' table of estimators with these (monitor kind, added_5m scores)."""
+    nodes = {eid: {"available": 1.0, "ape": {"rmse": 1.0}, **({"monitor": {"added_5m": m}} if m else {})} for eid, (_, m) in monitors.items()}
+    info = {"estimators": [{"id": eid, "monitor": kind} for eid, (kind, _) in monitors.items()]}
+    blocks = report.estimators(report.Context({"estimators": nodes}, info, {}, 0.0, {}))
+    assert isinstance(blocks[-2], document.Heading) and blocks[-2].text == "Through GPS degradation"
+    return blocks[-1]
+
+
+def column(table: document.Table, title: str) -> list[document.Cell]:
+    return [row[table.header.index(title)] for row in table.rows]
+
+
+def test_a_monitor_that_judged_no_faulty_fix_has_no_recall_and_its_false_alarms_are_never_best():
+    """As in the quickstart's fast run: no measured fix had more than 5 m added; hdop_switch flagged 6.5 %, ekf 25.6 %."""
+    none = {"faulty": 0, "precision": None, "recall": None, "false_alarm_rate": 0.065, "recall_at_5pct_fa": None}
+    table = degradation_table(
+        {"gps_only": ("none", None), "hdop_switch": ("hdop", none), "ekf": ("combined_cn0", {**none, "false_alarm_rate": 0.256})}
+    )
+    assert table.header == ["estimator", "monitor", "faulty fixes", "recall", "false alarms"]
+    assert [c.text for c in column(table, "recall")] == ["–", "–", "–"]
+    assert [c.text for c in column(table, "false alarms")] == ["–", "6.5 %", "25.6 %"]
+    assert not any(c.bold for row in table.rows for c in row)
+    for statement in ("faulty fixes", "recall", "false alarms"):  # every statement of the caption has its column
+        assert statement in table.note and statement in table.header
+    assert "window" not in table.note  # no window in this run: no window column, no sentence about one
+
+
+def test_false_alarms_are_ranked_only_beside_a_recall_above_zero():
+    scores = lambda recall, fa: {"faulty": 4, "precision": 0.5, "recall": recall, "false_alarm_rate": fa, "recall_at_5pct_fa": recall}
+    table = degradation_table({"a": ("nis", scores(0.5, 0.10)), "silent": ("hdop", scores(0.0, 0.0)), "b": ("cn0", scores(0.75, 0.20))})
+    assert [(c.text, c.bold) for c in column(table, "false alarms")] == [("10.0 %", True), ("0.0 %", False), ("20.0 %", False)]
+    assert [(c.text, c.bold) for c in column(table, "recall")] == [("50.0 %", False), ("0.0 %", False), ("75.0 %", True)]
+    assert [c.text for c in column(table, "faulty fixes")] == ["4", "4", "4"]
+
+
+def test_every_report_table_states_its_units(run_dir):
+    """Each table of the run report gives units in its header or its note (shares carry their '%')."""
+    text = (run_dir / "report.md").read_text()
+    tables = [block for block in text.split("\n\n") if block.startswith("| ")]
+    assert len(tables) >= 7
+    for block in tables:
+        header = block.splitlines()[0]
+        following = text.split(block, 1)[1].lstrip("\n").split("\n\n")[0]
+        note = following if following.startswith("*") else ""
+        assert re.search(r"\((m|s|ms|°|count)\)|\b(metres|m\)|seconds|units?|share|%)", header + note), header
+
+
+def test_the_map_projects_the_worlds_parts_onto_the_water_plane():
+    """Flat faces fill their footprint, a wall's vertical sheet becomes its line, vegetation and far parts are left out."""
+    import trimesh
+    from matplotlib.figure import Figure
+
+    from scenarios.report import world_map
+    from tests.analytic_worlds import ORIGIN, box, straight_route, water
+    from worlds.materials import CONCRETE, SOIL
+    from worlds.world import Part, World
+
+    sheet = trimesh.Trimesh([[0, 10, -1], [100, 10, -1], [100, 10, 5], [0, 10, 5]], [[0, 1, 2], [0, 2, 3]])  # the plane y = 10
+    parts = [
+        water(),
+        Part("canal_wall", "wall", CONCRETE, sheet),
+        Part("bank", "bank", SOIL, box((100.0, 28.0, 2.0), (50.0, 26.0, 0.0))),
+        Part("trunks", "tree", SOIL, box((1.0, 1.0, 8.0), (50.0, 30.0, 4.0))),
+        Part("far", "building", CONCRETE, box((10.0, 10.0, 20.0), (5000.0, 5000.0, 10.0))),
+    ]
+    prints = {f.kind: f for f in world_map.footprints(World("test", parts, straight_route(), ORIGIN), (-20.0, 120.0, -50.0, 50.0))}
+    assert sorted(prints) == ["bank", "wall", "water"]
+    wall, bank = prints["wall"], prints["bank"]
+    assert not len(wall.fill) and len(wall.lines) == 2
+    np.testing.assert_allclose(np.sort(wall.lines[:, :, 0].ravel()), [0, 0, 100, 100])
+    np.testing.assert_allclose(wall.lines[:, :, 1], 10.0)
+    a, b, c = bank.fill[:, 0], bank.fill[:, 1], bank.fill[:, 2]
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+    assert area.sum() == pytest.approx(2 * 100.0 * 28.0)  # top and bottom faces, each the 100 m x 28 m footprint
+    assert bank.fill[:, :, 0].min() == 0.0 and bank.fill[:, :, 1].max() == 40.0 and not len(bank.lines)
+    ax = Figure().subplots()
+    legend = world_map.draw(ax, list(prints.values()))
+    assert [p.get_label() for p in legend] == ["water", "bank, ground", "wall (line), quay deck, lock"]
+    assert len(ax.collections) == 3  # water and bank filled, the wall a line

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from datetime import UTC, datetime
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from matcher.result import MatchResult
+from riverbench import unixtime
 from scenarios.pipeline import files
 from scenarios.score import metrics
 from scenarios.score import windows as win
@@ -750,6 +752,35 @@ def test_tum_with_no_finite_pose_has_only_the_header(tmp_path):
     assert files.read_tum(path).shape[0] == 0
 
 
+def test_tum_with_a_time_zero_is_in_unix_nanoseconds_and_reads_back_on_the_scenario_clock(tmp_path):
+    zero = unixtime.unix_ns(datetime(2024, 6, 15, 14, 0, 0, tzinfo=UTC))
+    assert zero == 1_718_460_000 * 10**9  # date -u -d 2024-06-15T14:00:00Z +%s
+    t = 1974.7311226848155 + np.arange(5) / 10
+    poses = track(np.arange(5.0), np.zeros(5), np.zeros(5))
+    path = tmp_path / "est.tum"
+    assert files.write_tum(path, t, poses, zero) == 5
+    lines = path.read_text().splitlines()
+    assert lines[0] == files.TUM_HEADER.strip() and lines[1].startswith(files.TIME_ZERO + " 1718460000.000000000")
+    assert lines[2].split()[0] == "1718461974.731122685"  # 2024-06-15T14:32:54.731122685Z
+    np.testing.assert_allclose(files.read_tum(path)[:, 0], 1718460000.0 + t, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(files.read_tum(path, scenario_time=True)[:, 0], np.round(t * 1e9) / 1e9)
+
+
+@given(st.integers(-(10**19), 10**19))
+@FAST
+def test_unix_seconds_text_round_trips_nanoseconds(ns):
+    text = unixtime.seconds_text(ns)
+    assert unixtime.parse_seconds_ns(text) == ns and float(text) == pytest.approx(ns / 1e9, rel=1e-15, abs=1e-9)
+
+
+def test_waterline_keeps_the_plane_pose_and_attitude():
+    poses = np.array([pose(1.0, 2.0, 0.3, z=-0.4), np.full((4, 4), np.nan)])
+    poses[0, :3, :3] = Rotation.from_euler("xyz", [0.05, -0.02, 0.3]).as_matrix()
+    out = files.waterline(poses)
+    assert out[0, 2, 3] == 0.0 and np.array_equal(np.delete(out[0].ravel(), 11), np.delete(poses[0].ravel(), 11))
+    assert np.isnan(out[1, :2]).all() and poses[0, 2, 3] == -0.4
+
+
 def test_tum_files_read_by_evo_give_our_ape_and_yaw_error(tmp_path):
     """evo, the field's trajectory evaluator, reads our TUM files as they are and, on a planar
     error (no height error), its APE and rotation error equal our horizontal APE and yaw error."""
@@ -830,3 +861,69 @@ def test_column_grows_after_it_was_read():
     for i in range(5000, 9000):
         column.append(np.array([i, -i]))
     assert np.array_equal(column.array()[:, 0], np.arange(9000))
+
+
+# ---------------------------------------------------------------- units and precision of metrics.json
+
+
+def every_metric_tree() -> list[dict]:
+    """A run's metrics tree with every node filled (windows, monitor, failures, vessel, movers) and a replay's."""
+    from scenarios.pipeline.runner import RUN_NUMBERS
+    from scenarios.replay import metrics as replay_metrics
+    from scenarios.score import vessel_log
+
+    n = 30
+    truth = line(n)
+    est = truth.copy()
+    est[:10] = np.nan
+    fixes, *_ = monitor_case()
+    rec = run_record(truth, {"e": est}, {"m": matcher_track(truth)}, fixes=fixes)
+    rec.failures = [
+        {"component": "estimator", "id": "e", "stamp": 2.5, "reason": "x"},
+        {"component": "matcher", "id": "m", "stamp": 2.6, "reason": "x"},
+    ]
+    run_info = {**dict.fromkeys(RUN_NUMBERS, 1.5), "duration_s": 2.0, "mover_points": {"median": 1.0, "p90": 2.0, "max": 3.0, "scans_with": 0.5}}
+    windows = [win.Window(kind, 0.5, 1.0) for kind in win.KINDS]
+    run = metrics.compute(rec, windows, run_info, vessel_log.metrics(vessel_log.VesselLog(), 3.0, 0.1))
+    replay = replay_metrics.compute(rec, run_info, np.zeros(3))
+    return [metrics.json_safe(run), metrics.json_safe(replay)]
+
+
+def test_every_number_of_metrics_json_has_a_unit_and_a_precision_far_below_its_familys_tolerance():
+    from scenarios.score import baseline, units
+
+    paths = {path for tree in every_metric_tree() for path in baseline.flatten(tree)}
+    assert len(paths) > 150
+    for path in sorted(paths):
+        quantity = units.quantity_of(path)
+        assert quantity is not None, f"{path}: no unit in scenarios.score.units.QUANTITIES"
+        family = metrics.family_of(path)
+        if quantity.decimals is None or family.better == "none":
+            continue
+        if family.wall_clock:
+            assert family.rel_tol >= 0.25 and quantity.decimals >= 1, path  # judged on medians of ms, Hz, MB: 0.1 is nothing
+        else:
+            assert 0.5 * 10.0**-quantity.decimals <= family.abs_tol / 100, (path, quantity, family.name)
+    block = units.block()
+    assert block["*.ape.*"] == "m" and block["*.yaw.*"] == "deg" and block["matchers.*.success"] == "share (0-1)"
+
+
+def test_rounding_keeps_integers_flags_text_and_lists_and_rounds_floats_to_their_quantity():
+    from scenarios.score import units
+
+    tree = {
+        "run": {"seed": 3, "t_start": 1974.7311226848155, "wall_s": 26.058935375, "failures": [{"stamp": 1.23456789}], "lanes": [["gicp"]]},
+        "estimators": {
+            "e": {"ape": {"rmse": 1.61300133691, "max": -0.00000001}, "yaw": {"p95": 1.7612345}, "failed": False, "available": 0.99868421}
+        },
+        "matchers": {"m": {"points": {"median": 10457.5}, "ms": {"p95": 46.4396536}, "hz": 33.6687991}},
+        "vessel": {"outcome": "completed", "min_clearance_m": None},
+    }
+    out = units.rounded(tree)
+    assert out["run"] == {"seed": 3, "t_start": 1974.731123, "wall_s": 26.059, "failures": [{"stamp": 1.23456789}], "lanes": [["gicp"]]}
+    e = out["estimators"]["e"]
+    assert e["ape"] == {"rmse": 1.613, "max": 0.0} and math.copysign(1.0, e["ape"]["max"]) == 1.0
+    assert e["yaw"]["p95"] == 1.761 and e["failed"] is False and e["available"] == 0.9987
+    assert out["matchers"]["m"] == {"points": {"median": 10457.5}, "ms": {"p95": 46.44}, "hz": 33.669}
+    assert out["vessel"] == {"outcome": "completed", "min_clearance_m": None}
+    assert json.dumps(out["estimators"]["e"]["ape"]) == '{"rmse": 1.613, "max": 0.0}'

@@ -1,12 +1,14 @@
 """The runner: the run directory's files against the simulator's truth, determinism across worker
 counts and re-runs of the resolved scenario, recorded failures, and nothing half-written on disk."""
 
+import calendar
 import csv
 import json
 import tomllib
 from functools import reduce
 
 import numpy as np
+import pynmea2
 import pytest
 
 import scenarios
@@ -38,16 +40,60 @@ def test_run_directory_holds_every_file(short_run):
 
 
 def test_groundtruth_is_the_trajectory_at_scan_times(short_run):
+    """At the waterline: the true plane position and attitude, z = 0 (not rough water's heave)."""
     s = short_run.scenario
     trajectory = sim.Trajectory(worlds.load(s.world, **s.world_params), seed=s.seed, **s.vessel.model_dump(exclude={"seed"}))
-    rows = files.read_tum(short_run.out_dir / "groundtruth.tum")
+    rows = files.read_tum(short_run.out_dir / "groundtruth.tum", scenario_time=True)
     assert len(rows) == 300 and np.allclose(np.diff(rows[:, 0]), 0.1)
     poses = trajectory.poses(rows[:, 0])
-    assert np.allclose(rows[:, 1:4], poses[:, :3, 3], atol=2e-6)
+    assert np.abs(poses[:, 2, 3]).max() > 0.05  # rough water heaves the hull...
+    assert np.allclose(rows[:, 1:3], poses[:, :2, 3], atol=2e-6) and not rows[:, 3].any()  # ...the file keeps the waterline
     from scipy.spatial.transform import Rotation
 
     assert np.allclose(Rotation.from_quat(rows[:, 4:]).as_matrix(), poses[:, :3, :3], atol=1e-6)
     assert np.allclose(np.linalg.norm(rows[:, 4:], axis=1), 1.0)
+
+
+def test_tum_stamps_are_unix_time_from_the_gnss_epoch_and_the_stretch_start(short_run):
+    """UNIX seconds of `[gnss] epoch_utc` (UTC, no leap seconds: calendar.timegm, not GPS time) + the scan's time."""
+    epoch = short_run.scenario.gnss.epoch_utc
+    unix_epoch = calendar.timegm(epoch.utctimetuple()) + epoch.microsecond / 1e6
+    assert epoch.utcoffset().total_seconds() == 0 and 1.7e9 < unix_epoch < 1.8e9  # the default epoch: 2024-06-15T14:00:00Z
+    t_start = short_run.metrics["run"]["t_start"]
+    assert t_start == pytest.approx(60.0, abs=0.1)  # the stretch starts at 60 s of the trajectory
+    for name in ("groundtruth.tum", "ekf.tum", "gicp.tum"):
+        path = short_run.out_dir / name
+        first = path.read_text().splitlines()[2].split()[0]
+        assert len(first.split(".")[1]) == 9  # nanoseconds
+        rows, on_clock = files.read_tum(path), files.read_tum(path, scenario_time=True)
+        assert rows[:, 0] == pytest.approx(unix_epoch + on_clock[:, 0], abs=1e-6)
+    truth = files.read_tum(short_run.out_dir / "groundtruth.tum")
+    assert truth[0, 0] == pytest.approx(unix_epoch + t_start, abs=1e-6)
+    # the first GGA's UTC time of day (pynmea2 reads it) is the same instant: a fix shares the first scan's stamp
+    gga = next(pynmea2.parse(line) for line in (short_run.out_dir / "gps.nmea").read_text().splitlines() if "GGA" in line)
+    seconds_of_day = gga.timestamp.hour * 3600 + gga.timestamp.minute * 60 + gga.timestamp.second + gga.timestamp.microsecond / 1e6
+    assert seconds_of_day == pytest.approx(truth[0, 0] % 86400, abs=0.01)
+
+
+def test_evo_on_the_run_files_gives_the_bench_ape(short_run):
+    """evo (its default APE: 3-D translation, no --project_to_plane, no alignment) on groundtruth.tum and an
+    estimator's or matcher's file reproduces metrics.json's horizontal APE to 1 mm: the files sit at the waterline."""
+    from evo.core import metrics as evo_metrics
+    from evo.core import sync
+    from evo.tools import file_interface
+
+    m = short_run.metrics
+    for kind, cid in (("estimators", "ekf"), ("estimators", "gps_only"), ("matchers", "gicp")):
+        reference = file_interface.read_tum_trajectory_file(str(short_run.out_dir / "groundtruth.tum"))
+        estimate = file_interface.read_tum_trajectory_file(str(short_run.out_dir / f"{cid}.tum"))
+        reference, estimate = sync.associate_trajectories(reference, estimate)
+        ape = evo_metrics.APE(evo_metrics.PoseRelation.translation_part)
+        ape.process_data((reference, estimate))
+        ours = m[kind][cid]["ape"]
+        assert ape.get_statistic(evo_metrics.StatisticsType.rmse) == pytest.approx(ours["rmse"], abs=1e-3), (cid, "rmse")
+        assert ape.get_statistic(evo_metrics.StatisticsType.max) == pytest.approx(ours["max"], abs=1e-3), (cid, "max")
+        assert float(np.percentile(ape.error, 95)) == pytest.approx(ours["p95"], abs=1e-3), (cid, "p95")
+        assert estimate.num_poses == round(m[kind][cid].get("available", 1.0) * m["run"]["scans"])
 
 
 def test_metrics_match_the_files(short_run):
@@ -57,8 +103,8 @@ def test_metrics_match_the_files(short_run):
     ekf = files.read_tum(short_run.out_dir / "ekf.tum")
     common, i, j = np.intersect1d(truth[:, 0], ekf[:, 0], return_indices=True)
     error = np.hypot(*(truth[i, 1:3] - ekf[j, 1:3]).T)
-    assert m["estimators"]["ekf"]["ape"]["max"] == pytest.approx(error.max(), abs=1e-5)
-    assert m["estimators"]["ekf"]["available"] == pytest.approx(len(common) / len(truth))
+    assert m["estimators"]["ekf"]["ape"]["max"] == pytest.approx(error.max(), abs=6e-5)  # metres to 0.1 mm (scenarios.score.units)
+    assert m["estimators"]["ekf"]["available"] == pytest.approx(len(common) / len(truth), abs=5e-5)  # shares to 1e-4
     with open(short_run.out_dir / "gps.csv") as f:
         rows = list(csv.DictReader(f))
     measured = [float(r["err_h"]) for r in rows if r["quality"] == "1"]
@@ -66,6 +112,25 @@ def test_metrics_match_the_files(short_run):
     assert m["gps"]["error"]["max"] == pytest.approx(max(measured), abs=1e-3)
     assert m["run"]["realtime_factor"] > 0 and m["run"]["peak_rss_mb"] > 100
     assert [e["expect"] for e in m["expectations"]] == short_run.scenario.expect
+
+
+def test_metrics_json_states_its_units_and_rounds_to_them(short_run):
+    from scenarios.batch import table
+    from scenarios.score import baseline, units
+
+    m = json.loads((short_run.out_dir / "metrics.json").read_text())
+    assert m["units"] == units.block() and list(m)[-1] == "units"
+    flat = baseline.flatten(m)
+    assert not any(path.startswith("units") for path in [*flat, *table.flatten(m)])
+    for path, value in flat.items():
+        quantity = units.quantity_of(path)
+        assert quantity is not None, path
+        if quantity.decimals is not None and value is not None:
+            assert round(value, quantity.decimals) == value, path
+    assert m["estimators"]["ekf"]["ape"]["p95"] == round(m["estimators"]["ekf"]["ape"]["p95"], 4)
+    for outcome in m["expectations"]:  # each verdict judged the number metrics.json shows
+        path = outcome["expect"].split()[0]
+        assert outcome["value"] == flat[path], path
 
 
 def test_nmea_log_has_valid_checksums(short_run):

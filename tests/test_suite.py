@@ -2,7 +2,12 @@
 and the expectations are not loose: each scenario fails when what it tests is taken away."""
 
 import json
+import os
 import re
+import signal
+import subprocess
+import sys
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -63,6 +68,21 @@ def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
     assert (tmp_path / "runs" / "comparison" / "report.html").is_file()
 
 
+def test_suite_fast_runs_what_the_baseline_ran_the_full_scenario_where_there_is_no_fast_table():
+    from scenarios.batch.suite import Job, case_scenario
+    from scenarios.score import baseline
+
+    stored = baseline.load(BASELINE)
+    assert stored.fast
+    for name, runs in stored.scenarios.items():
+        full = scenarios.load(name)
+        for seed, recorded in zip(runs.seeds, runs.hashes, strict=True):
+            ran = case_scenario(Job(name, seed), fast=True)
+            assert ran.setup_hash == recorded, f"{name} seed {seed}: suite --fast would no longer run what the baseline measured"
+            if full.fast is None:
+                assert ran.stretch == full.stretch and ran.expect == full.expect
+
+
 def test_suite_reports_a_failing_and_a_broken_scenario_and_exits_1(tmp_path):
     failing = tmp_path / "failing.toml"
     failing.write_text(
@@ -72,9 +92,12 @@ def test_suite_reports_a_failing_and_a_broken_scenario_and_exits_1(tmp_path):
     broken = tmp_path / "broken.toml"
     broken.write_text('world = "open_river"\nstretch = {start_s = 5000.0, end_s = 5010.0}\n')
     junit = tmp_path / "j.xml"
-    result = runner.invoke(app, ["suite", str(failing), str(broken), "--junit", str(junit), "--out", str(tmp_path / "runs")])
+    result = runner.invoke(app, ["suite", str(failing), str(broken), "--fast", "--junit", str(junit), "--out", str(tmp_path / "runs")])
     assert result.exit_code == 1
-    assert "0 passed, 2 failed" in result.output
+    assert "--fast: no [fast] variant, so run in full: broken, failing" in result.output
+    assert "1 of 2 runs failed an expectation: failing" in result.output  # a run that ran and missed, told apart from
+    assert "1 of 2 runs failed to run: broken" in result.output  # one that could not run
+    assert "FAIL (1 of 1 expectations) failing" in result.output and "failed to run broken" in result.output
     root = ET.parse(junit).getroot()
     assert root.get("failures") == "1" and root.get("errors") == "1"
     assert "stretch" in root.find(".//error").get("message")
@@ -150,3 +173,32 @@ def test_a_scenario_that_times_out_is_a_failure_and_leaves_nothing(tmp_path):
     case = json.loads((runs / "suite.json").read_text())["cases"][0]
     assert case["error"] == "timed out after 12 s" and not case["passed"]
     assert sorted(p.name for p in runs.iterdir()) == ["suite.json"]  # the run's temporary directory went with it
+
+
+@pytest.mark.slow  # ~15 s: a suite process and its scenario process started and stopped (tests/test_cli.py stops a run in the fast tier)
+def test_a_killed_suite_stops_its_scenarios_leaves_nothing_hidden_and_exits_143(tmp_path):
+    long = tmp_path / "long.toml"
+    long.write_text(
+        'world = "open_river"\nstretch = {start_s = 0.0, end_s = 600.0}\n'
+        'matchers = [{id = "bev", kind = "bev3dof"}]\nestimators = [{id = "gps", kind = "gps_only"}]\n'
+    )
+    runs = tmp_path / "runs"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "scenarios.cli", "suite", str(long), "--workers", "1", "--out", str(runs), "--quiet"],
+        cwd=tmp_path,
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not [p for p in runs.glob(".long.*/gps.nmea") if p.stat().st_size > 0]:
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGTERM)  # the suite and its scenario process, as a job runner's cancel does
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 143 and "stopped (SIGTERM): suite interrupted" in err, err
+    assert list(runs.iterdir()) == []  # the scenario's hidden temporary run directory went with it

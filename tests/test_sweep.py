@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from scenarios.batch import sweep as sweeping
 from scenarios.batch import table as sweep_table
-from scenarios.batch.plan import Axis, Range, SweepPlan
+from scenarios.batch.plan import SAMPLERS, Axis, Range, SweepPlan, unit_samples
 from scenarios.batch.workers import run_jobs
 from scenarios.spec.library import load
 
@@ -70,18 +70,61 @@ def test_the_same_point_twice_runs_once():
     assert len(SweepPlan(("canal_multipath",), grid=(Axis.parse("lidar.range_noise_m=0.02,0.020"),), fixed=(SHORT,)).points()) == 1
 
 
-@given(lo=st.floats(1e-4, 10.0), span=st.floats(1.01, 1e3), log=st.booleans(), seed=st.integers(0, 2**32 - 1))
-def test_samples_stay_in_their_range_and_repeat_with_the_sample_seed(lo, span, log, seed):
-    r = Range("k", lo, lo * span, log)
-    a, b = r.draw(np.random.default_rng(seed), 50), r.draw(np.random.default_rng(seed), 50)
-    assert a == b and all(lo <= v <= lo * span for v in a) and all(type(v) is float for v in a)
+def sampled(sampler: str, n: int, *ranges: str, seed: int = 0) -> list[dict]:
+    plan = SweepPlan(("canal_multipath",), ranges=tuple(Range.parse(r) for r in ranges), samples=n, sampler=sampler, sample_seed=seed)
+    return plan.combinations()
 
 
-def test_integer_bounds_sample_integers_and_log_ranges_are_log_uniform():
-    ints = Range.parse("vessel.sea_state=0:3").draw(np.random.default_rng(0), 400)
-    assert set(ints) == {0, 1, 2, 3}
-    logs = np.log10(Range.parse("lidar.range_noise_m=0.001:1.0:log").draw(np.random.default_rng(0), 4000))
-    assert np.histogram(logs, bins=3, range=(-3, 0))[0].min() > 1200  # a third of the draws in each decade
+@given(
+    lo=st.floats(1e-4, 10.0),
+    span=st.floats(1.01, 1e3),
+    log=st.booleans(),
+    sampler=st.sampled_from(SAMPLERS),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_samples_stay_in_their_range_and_repeat_with_the_sample_seed(lo, span, log, sampler, seed):
+    key = f"k={lo!r}:{lo * span!r}" + (":log" if log else "")
+    a, b = sampled(sampler, 16, key, "j=0:3", seed=seed), sampled(sampler, 16, key, "j=0:3", seed=seed)
+    assert a == b and len(a) == 16
+    assert all(lo <= c["k"] <= lo * span and type(c["k"]) is float for c in a)
+    assert all(c["j"] in (0, 1, 2, 3) and type(c["j"]) is int for c in a)
+    assert a != sampled(sampler, 16, key, "j=0:3", seed=seed + 1)
+
+
+@pytest.mark.parametrize("n", [1, 7, 64, 300])
+def test_a_latin_hypercube_puts_one_sample_in_each_of_n_strata_of_every_key(n):
+    combos = sampled("lhs", n, "lidar.range_noise_m=0.01:0.05", "gnss.rate_hz=1.0:1000.0:log", "other=-3.0:5.0")
+    noise = np.array([c["lidar.range_noise_m"] for c in combos])
+    rate = np.log10([c["gnss.rate_hz"] for c in combos])  # log-scaled: the strata are equal in log space
+    other = np.array([c["other"] for c in combos])
+    for unit in ((noise - 0.01) / 0.04, (rate - 0.0) / 3.0, (other + 3.0) / 8.0):
+        assert sorted(np.minimum(np.floor(unit * n), n - 1).astype(int)) == list(range(n))
+
+
+def test_log_scaled_keys_spread_evenly_over_the_decades_and_integer_keys_over_their_values():
+    combos = sampled("lhs", 300, "lidar.range_noise_m=0.001:1.0:log", "vessel.sea_state=0:3")
+    logs = np.log10([c["lidar.range_noise_m"] for c in combos])
+    assert list(np.histogram(logs, bins=3, range=(-3, 0))[0]) == [100, 100, 100]  # a stratum per sample: exactly a third a decade
+    assert [sum(c["vessel.sea_state"] == k for c in combos) for k in range(4)] == [75, 75, 75, 75]
+    uniform = np.log10([c["lidar.range_noise_m"] for c in sampled("random", 4000, "lidar.range_noise_m=0.001:1.0:log")])
+    assert np.histogram(uniform, bins=3, range=(-3, 0))[0].min() > 1200  # plain random: a third in each decade, on average
+
+
+def test_sobol_points_need_a_power_of_two_and_the_sampler_must_be_known():
+    assert len(sampled("sobol", 16, "lidar.range_noise_m=0.01:0.05")) == 16
+    with pytest.raises(ValueError, match=r"--sampler sobol: N must be a power of 2 .*got 10; use 8 or 16"):
+        sampled("sobol", 10, "lidar.range_noise_m=0.01:0.05")
+    with pytest.raises(ValueError, match="--sampler 'halton': use one of lhs, sobol, random"):
+        sampled("halton", 10, "lidar.range_noise_m=0.01:0.05")
+
+
+def test_quasi_random_samplers_cover_the_box_more_evenly_than_random_draws():
+    """The point of --sampler: lower centred L2 discrepancy (scipy.stats.qmc.discrepancy) than plain random draws, in
+    the median over seeds (benchmarks/sampling.py prints the figures)."""
+    from scipy.stats import qmc
+
+    median = {s: np.median([qmc.discrepancy(unit_samples(s, 64, 3, seed)) for seed in range(20)]) for s in SAMPLERS}
+    assert median["sobol"] < median["random"] and median["lhs"] < median["random"]
 
 
 def test_samples_are_joint_and_crossed_with_the_grid():
@@ -120,6 +163,17 @@ def test_bad_plans_fail_with_one_line_naming_the_problem(make, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")) as err:
         make()
     assert "\n" not in str(err.value)
+
+
+def test_fast_sweeps_each_scenarios_fast_variant_and_refuses_a_scenario_without_one():
+    points = SweepPlan(("quickstart",), seeds=2, fast=True).points()
+    fast = load("quickstart").fast_variant()
+    assert [p.scenario().stretch for p in points] == [fast.stretch] * 2 and points[0].scenario().expect == fast.expect
+    assert points[0].hash == load("quickstart", seed=0).fast_variant().hash != SweepPlan(("quickstart",), seeds=2).points()[0].hash
+    with pytest.raises(ValueError, match=r"^open_river: no \[fast\] variant"):
+        SweepPlan(("open_river",), seeds=2, fast=True).points()
+    with pytest.raises(ValueError, match=r"^stretch: overridden, but --fast runs the \[fast\] table's stretch"):
+        SweepPlan(("quickstart",), grid=(Axis.parse("stretch={start_s = 0.0, end_s = 5.0},{start_s = 0.0, end_s = 6.0}"),), fast=True).points()
 
 
 def test_the_objective_must_be_a_metric_the_runs_have():
@@ -245,6 +299,8 @@ def test_a_killed_sweep_leaves_a_consistent_table_and_the_same_command_completes
         "lidar.range_noise_m=0.01,0.02,0.03,0.04",
         "--set",
         SHORT,
+        "--set",
+        "expect=[]",  # the short stretch misses the scenario's expectations; this test is about resuming (exit 0)
         "--workers",
         "1",
         "--lean",
@@ -269,7 +325,12 @@ def test_a_killed_sweep_leaves_a_consistent_table_and_the_same_command_completes
     assert sorted(p.name for p in (tmp_path / "sw" / "runs").iterdir()) == sorted(r["run_dir"].split("/")[1] for r in after)
 
 
-def test_ctrl_c_stops_the_sweep_with_the_finished_runs_in_the_table(tmp_path):
+@pytest.mark.parametrize(
+    ("signum", "code"),
+    [(signal.SIGINT, 130), pytest.param(signal.SIGTERM, 143, marks=pytest.mark.slow)],  # ~16 s each; tests/test_cli.py kills a run fast
+    ids=["ctrl-c", "kill"],
+)
+def test_a_stopped_sweep_keeps_the_finished_runs_in_the_table_and_leaves_nothing_hidden(tmp_path, signum, code):
     args = [
         "sweep",
         "canal_multipath",
@@ -299,12 +360,12 @@ def test_ctrl_c_stops_the_sweep_with_the_finished_runs_in_the_table(tmp_path):
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and (not table.exists() or pq.read_table(table).num_rows < 1):
         time.sleep(0.2)
-    os.killpg(proc.pid, signal.SIGINT)
+    os.killpg(proc.pid, signum)  # the whole process group, as a terminal's Ctrl-C or a job runner's cancel does
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130 and "the same command completes it" in err
+    assert proc.returncode == code and "the same command completes it" in err, err
     rows = pq.read_table(table).to_pylist()
     assert 1 <= len(rows) < 3
-    assert not [p for p in (tmp_path / "sw" / "runs").iterdir() if p.name.startswith(".")]  # interrupted runs cleaned up
+    assert not [p for p in (tmp_path / "sw").rglob(".*")]  # interrupted runs and table writes cleaned up
 
 
 @pytest.mark.parametrize(
@@ -317,6 +378,9 @@ def test_ctrl_c_stops_the_sweep_with_the_finished_runs_in_the_table(tmp_path):
         (["--seeds", "2", "--plot", "matchers.gicp.speed"], "--plot 'matchers.gicp.speed'"),
         (["--sample", "3", "lidar.range_noise_m=0.05:0.01"], "lo must be below hi"),
         (["--seeds", "2", "--backend", "spark"], "--backend 'spark'"),
+        (["--seeds", "2", "--fast"], "canal_multipath: no [fast] variant"),
+        (["--sample", "10", "lidar.range_noise_m=0.01:0.05", "--sampler", "sobol"], "N must be a power of 2"),
+        (["--sample", "10", "lidar.range_noise_m=0.01:0.05", "--sampler", "grid"], "--sampler 'grid'"),
         ([], "nothing to sweep"),
     ],
 )
@@ -330,6 +394,49 @@ def test_bad_sweep_input_is_one_line_exit_2_and_writes_nothing(tmp_path, monkeyp
     assert result.exit_code == 2, result.output
     assert message in result.output and len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "sw").exists() and not (tmp_path / "runs").exists()
+
+
+def test_a_sweep_whose_runs_fail_an_expectation_says_how_many_and_exits_1(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from scenarios.cli import app
+
+    monkeypatch.chdir(tmp_path)
+    expect = 'expect=["gps.availability < 0.0"],["gps.availability >= 0.0"]'  # one run misses, one passes
+    args = [
+        "sweep",
+        "canal_multipath",
+        "--set",
+        "stretch={start_s = 60.0, end_s = 61.0}",
+        "--grid",
+        expect,
+        "--lean",
+        "--workers",
+        "1",
+        "--out",
+        "sw",
+    ]
+    result = CliRunner().invoke(app, args)
+    said = " ".join(result.output.split())  # rich wraps at 80 columns
+    assert result.exit_code == 1, result.output
+    assert "1 of 2 runs failed an expectation: canal_multipath seed 0 expect=['gps.availability < 0.0']" in said
+    assert "FAIL canal_multipath seed 0 expect=['gps.availability < 0.0']" in said and "1 of 1 expectations failed" in said
+    assert "pass canal_multipath seed 0 expect=['gps.availability >= 0.0']" in said and "failed to run" not in said
+
+
+def test_a_sweep_tells_runs_that_failed_to_run_from_runs_that_failed_an_expectation():
+    from scenarios.batch.outcome import of_rows
+
+    rows = [
+        {"scenario": "s", "seed": 0, "status": "ok", "passed": True, "param.a": 1},
+        {"scenario": "s", "seed": 0, "status": "ok", "passed": False, "param.a": 2},
+        {"scenario": "s", "seed": 0, "status": "ok", "passed": False, "param.a": 0.123456},
+        {"scenario": "s", "seed": 1, "status": "failed", "passed": None, "param.a": 2},
+    ]
+    verdict = of_rows(rows)
+    assert verdict.exit_code == 1
+    assert verdict.lines() == ["2 of 4 runs failed an expectation: s seed 0 a=2, s seed 0 a=0.1235", "1 of 4 runs failed to run: s seed 1 a=2"]
+    assert of_rows(rows[:1]).lines() == ["1 of 1 runs passed every expectation"] and of_rows(rows[:1]).exit_code == 0
 
 
 def test_a_missing_ray_is_one_line_saying_how_to_install_it(tmp_path):

@@ -207,7 +207,7 @@ def test_a_run_with_traffic_records_the_movers_at_scan_times_and_their_points(tm
     result = scenarios.run(scenario, tmp_path / "run", workers=1, report=False)
     with open(result.out_dir / "movers.csv") as handle:
         rows = list(csv.DictReader(handle))
-    truth = files.read_tum(result.out_dir / "groundtruth.tum")
+    truth = files.read_tum(result.out_dir / "groundtruth.tum", scenario_time=True)
     assert [float(r["t"]) for r in rows] == pytest.approx(truth[:, 0], abs=1e-3) and {r["id"] for r in rows} == {"chase"}
     world = worlds.load(scenario.world, **scenario.world_params)
     assert {int(r["label"]) for r in rows} == {len(world.parts)}

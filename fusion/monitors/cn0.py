@@ -23,8 +23,23 @@ fixes that follow for a few seconds after the reflected satellite is dropped (on
 of the 63 fixes that the environment put > 5 m off without a used NLOS satellite were within 5.2 s
 of one). The statistic is therefore the largest deficit over the last `hold_s` seconds, and the fix
 is distrusted when it exceeds gate_sigma. Until `min_bins` bins hold `min_samples_per_bin`
-samples the monitor cannot judge and trusts the fix (reason says it is learning). Satellites with
-a non-finite or non-positive C/N0 or elevation are skipped and named in the reason.
+samples the monitor cannot judge and trusts the fix (reason says it is learning), unless a receiver
+profile (`profile_template`: the direct-signal line and jitter measured for this receiver and
+antenna under open sky) stands in for the template until it is learned. Satellites with a
+non-finite or non-positive C/N0 or elevation are skipped and named in the reason.
+
+Several constellations and signals (`per_signal`): a receiver reports each system's signals at its
+own level: the signals' specified minimum received powers differ (PRIOR_OFFSETS_DB, from the
+systems' interface specifications), and receivers differ further in how they track and report
+them. Each signal (system and signal name, sim.nmea.systems) expects the template plus its own
+offset from GPS L1 C/A: its prior until `min_samples_per_signal` of its reports are buffered, then
+learned from the recording itself as the template is (the `mid_q` quantile of its residuals about
+the template less its normal quantile times sigma, relative to GPS L1 C/A's, or, with too few GPS
+L1 C/A reports, to the most reported signal's, which keeps its prior), and so is its jitter (the
+gap of its residuals' `mid_q` and `high_q` quantiles, pooled over all its satellites, so it also
+holds the spread between them; never below the template's sigma). The template is learned from
+every signal's reports less their offsets. A receiver that reports GPS L1 C/A only (the
+simulator) never uses an offset: its template, jitter and verdicts are the single-template ones.
 """
 
 from __future__ import annotations
@@ -39,6 +54,30 @@ from scipy.stats import norm
 from fusion.monitors.base import FixContext, Monitor
 from fusion.observation import FixObservation
 from fusion.verdict import Verdict
+
+REFERENCE = "GPS L1 C/A"
+"""The signal every offset is relative to (the simulator's only one)."""
+PRIOR_OFFSETS_DB = {
+    "GPS L1 C/A": 0.0,
+    "GPS L2C-M": -1.5,
+    "GPS L2C-L": -1.5,
+    "GPS L5-I": 0.6,
+    "GPS L5-Q": 0.6,
+    "GLONASS L1OF": -2.5,
+    "GLONASS L2OF": -8.5,
+    "Galileo E1-BC": 1.5,
+    "Galileo E5a": 3.5,
+    "Galileo E5b": 3.5,
+    "BeiDou B1I": -4.5,
+    "BeiDou B2I": -4.5,
+    "QZSS L1 C/A": 0.0,
+    "SBAS L1 C/A": -2.5,
+}
+"""Specified minimum received power of each signal less GPS L1 C/A's -158.5 dBW (IS-GPS-200N Table 3-Va), dB: GPS L2C -160
+(IS-GPS-200N), L5 -157.9 per component (IS-GPS-705J); GLONASS L1OF -161, L2OF -167 (GLONASS ICD L1/L2 edition 5.1, 2008,
+3.3.1.6); Galileo E1 (B+C) -157, E5a and E5b -155 (Galileo OS SIS ICD issue 2.1, 2023, 2.4.1); BeiDou B1I and B2I -163
+(BDS-SIS-ICD-B1I-3.0 and -B2I-1.0, 2019/2013); QZSS L1 C/A -158.5 (IS-QZSS-PNT-005); SBAS L1 -161 (ICAO Annex 10 vol. I,
+3.7.3.4). A prior only: receivers report C/N0 at their own levels (learned per signal from the recording)."""
 
 
 class Cn0Params(BaseModel):
@@ -83,6 +122,27 @@ class Cn0Params(BaseModel):
         "output in about 4 s; 0 = no hold]",
     )
 
+    per_signal: bool = Field(
+        True,
+        description="expect each constellation's and signal's C/N0 at its own offset from GPS L1 C/A (module docstring) [True; "
+        "False: every signal against one template, as before multi-GNSS receivers were read]",
+    )
+    offsets_db: dict[str, float] = Field(
+        default_factory=lambda: dict(PRIOR_OFFSETS_DB),
+        description="prior C/N0 offset from GPS L1 C/A per '<system> <signal>', dB, until learned [the difference of the "
+        "signals' specified minimum received powers, PRIOR_OFFSETS_DB; a signal not listed: 0]",
+    )
+    learn_offsets: bool = Field(True, description="learn each signal's offset from the recording once it has enough reports [True]")
+    min_samples_per_signal: int = Field(
+        40, ge=5, description="reports of a signal buffered before its offset is learned [40: as a template bin's min_samples_per_bin]"
+    )
+    profile_template: tuple[float, float, float] | None = Field(
+        None,
+        description="a receiver profile: [C/N0 at the horizon (dB-Hz), its rise to the zenith (dB-Hz per unit sin(elevation)), "
+        "jitter sigma (dB)] of direct GPS L1 C/A signals, measured for this receiver and antenna under open sky; judges "
+        "fixes until the template is learned [None: trust fixes while learning]",
+    )
+
     @model_validator(mode="after")
     def _ordered(self) -> Cn0Params:
         if self.high_q <= self.mid_q:
@@ -111,17 +171,40 @@ class Cn0Monitor(Monitor):
         self._sin = np.full((p.bins, p.samples_per_bin), np.nan)  # ring buffers per sin(el) bin
         self._cn0 = np.full((p.bins, p.samples_per_bin), np.nan)
         self._count = np.zeros(p.bins, dtype=np.int64)  # samples ever added per bin
+        self._group = np.full((p.bins, p.samples_per_bin), -1, dtype=np.int64)  # signal index of each sample
+        self._signals: dict[str, int] = {REFERENCE: 0}  # signal name -> index; offsets by index
+        self._offset = np.zeros(1)  # dB from the template, per signal index (priors until learned)
+        self._spread = np.full(1, np.nan)  # learned jitter sigma per signal index (dB); the template's for GPS L1 C/A
         self._line: tuple[float, float] | None = None  # template intercept and slope over sin(el), dB-Hz
         self._sigma = math.nan
         self._z_mid, self._z_high = norm.ppf(p.mid_q), norm.ppf(p.high_q)
         self._recent: deque[tuple[float, float]] = deque()  # (stamp, deficit) of committed fixes within hold_s
 
     def template(self, el_deg: float | np.ndarray) -> tuple[np.ndarray, float] | None:
-        """Learned direct-signal C/N0 (dB-Hz) at these elevations and its jitter sigma (dB), or None while learning."""
-        if self._line is None:
+        """Direct GPS L1 C/A C/N0 (dB-Hz) at these elevations and its jitter sigma (dB): learned, else the receiver profile's,
+        else None (learning)."""
+        if self._line is not None:
+            (a, b), sigma = self._line, self._sigma
+        elif self.params.profile_template is not None:
+            a, b, sigma = self.params.profile_template
+        else:
             return None
-        a, b = self._line
-        return a + b * np.sin(np.deg2rad(np.asarray(el_deg, dtype=float))), self._sigma
+        return a + b * np.sin(np.deg2rad(np.asarray(el_deg, dtype=float))), sigma
+
+    def offsets(self) -> dict[str, float]:
+        """Each signal's current offset from the template (dB), learned or prior."""
+        return {name: float(self._offset[k]) for name, k in self._signals.items()}
+
+    def _signal(self, sat) -> int:
+        """The index of a satellite's signal (registered on first sight with its prior offset); 0 without per_signal."""
+        if not self.params.per_signal:
+            return 0
+        name = f"{getattr(sat, 'system', 'GPS')} {getattr(sat, 'signal', 'L1 C/A')}"
+        if name not in self._signals:
+            self._signals[name] = len(self._signals)
+            self._offset = np.append(self._offset, self.params.offsets_db.get(name, 0.0))
+            self._spread = np.append(self._spread, np.nan)
+        return self._signals[name]
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         deficit, sigma, named, note = self._deficit(obs)
@@ -158,9 +241,15 @@ class Cn0Monitor(Monitor):
             full = int((self._count >= self.params.min_samples_per_bin).sum())
             return math.nan, None, "", f"learning the C/N0 template ({full}/{self.params.min_bins} bins)" + skipped
         expected, sigma = learned
-        deficit = (expected - snr[ok]) / sigma
-        prns = [s.prn for s, k in zip(used, ok) if k]
-        named = ", ".join(f"PRN {prn} {d:.1f}" for d, prn in sorted(zip(deficit.tolist(), prns), reverse=True) if d > self.gate)
+        signals = [self._signal(s) for s, k in zip(used, ok) if k]
+        scale: float | np.ndarray = sigma
+        if any(signals):
+            expected = expected + self._offset[signals]
+            own = self._spread[signals]
+            scale = np.where(np.isfinite(own), np.maximum(own, sigma), sigma)
+        deficit = (expected - snr[ok]) / scale
+        names = [_label(s) for s, k in zip(used, ok) if k]
+        named = ", ".join(f"{name} {d:.1f}" for d, name in sorted(zip(deficit.tolist(), names), reverse=True) if d > self.gate)
         return float(deficit.max()), sigma, named, skipped
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
@@ -170,6 +259,10 @@ class Cn0Monitor(Monitor):
             self._recent.popleft()
         if math.isfinite(deficit) and self.params.hold_s > 0:
             self._recent.append((obs.stamp, deficit))
+        self.calibrate(obs)
+
+    def calibrate(self, obs: FixObservation) -> None:
+        """Learn from every tracked satellite of a fix (used or not) and refit the template, without judging it."""
         if not obs.sats:
             return
         el = np.array([_float(s.el_deg) for s in obs.sats])
@@ -179,9 +272,10 @@ class Cn0Monitor(Monitor):
             return
         s = np.sin(np.deg2rad(el[ok]))
         b = np.minimum((s * self.params.bins).astype(int), self.params.bins - 1)
+        signals = [self._signal(sat) for sat, k in zip(obs.sats, ok) if k]
         for k, (sk, ck) in enumerate(zip(s, snr[ok])):
             slot = self._count[b[k]] % self.params.samples_per_bin
-            self._sin[b[k], slot], self._cn0[b[k], slot] = sk, ck
+            self._sin[b[k], slot], self._cn0[b[k], slot], self._group[b[k], slot] = sk, ck, signals[k]
             self._count[b[k]] += 1
         self._fit()
 
@@ -192,6 +286,9 @@ class Cn0Monitor(Monitor):
         if full.sum() < p.min_bins:
             return
         sin_b, cn0_b = self._sin[full], self._cn0[full]
+        several = len(self._signals) > 1
+        if several:  # each signal's reports brought to GPS L1 C/A's level (a GPS L1 C/A-only receiver never gets here)
+            cn0_b = cn0_b - np.where(self._group[full] >= 0, self._offset[np.maximum(self._group[full], 0)], 0.0)
         weight = np.minimum(self._count[full], p.samples_per_bin).astype(float)
         centre = np.nanmean(sin_b, axis=1)
         a, b = 0.0, 0.0
@@ -206,6 +303,34 @@ class Cn0Monitor(Monitor):
                 b, a = np.polyfit(centre, direct, 1, w=np.sqrt(weight))
                 a, b = float(a), float(b)
         self._line, self._sigma = (a, b), sigma
+        if several and p.learn_offsets:
+            self._fit_offsets()
+
+    def _fit_offsets(self) -> None:
+        """Each signal's offset from its reports about the template (module docstring), relative to an anchor signal."""
+        assert self._line is not None
+        p, (a, b) = self.params, self._line
+        stored = self._group >= 0
+        groups, sin, cn0 = self._group[stored], self._sin[stored], self._cn0[stored]
+        counts = np.bincount(groups, minlength=len(self._signals))
+        ready = counts >= p.min_samples_per_signal
+        if not ready.any():
+            return
+        residual = cn0 - (a + b * sin)
+        level = np.full(len(self._signals), np.nan)
+        for k in np.flatnonzero(ready):
+            q_mid, q_high = np.quantile(residual[groups == k], [p.mid_q, p.high_q])
+            level[k] = float(q_mid) - self._z_mid * self._sigma
+            if k:
+                self._spread[k] = max(float(q_high - q_mid) / (self._z_high - self._z_mid), self._sigma)
+        anchor = 0 if ready[0] else int(np.argmax(counts))
+        self._offset[ready] = self._offset[anchor] + level[ready] - level[anchor]
+
+
+def _label(sat) -> str:
+    """How a reason names a satellite: 'PRN n' for GPS L1 C/A, else its system, number and signal."""
+    system, signal = getattr(sat, "system", "GPS"), getattr(sat, "signal", "L1 C/A")
+    return f"PRN {sat.prn}" if f"{system} {signal}" == REFERENCE else f"{system} {sat.prn} {signal}"
 
 
 def _float(value) -> float:

@@ -6,7 +6,6 @@ import time
 from dataclasses import dataclass
 
 from scenarios.batch.plan import SweepPoint
-from scenarios.spec.library import load
 
 
 @dataclass(frozen=True)
@@ -35,7 +34,7 @@ def run_job(job: Job) -> JobOutcome:
 
     start = time.perf_counter()
     try:
-        scenario = load(job.point.source, set=list(job.point.assignments), seed=job.point.seed)
+        scenario = job.point.scenario()
         result = run(scenario, job.run_dir, workers=job.workers, report=job.report)
     except Exception as exc:  # recorded with its reason; the sweep goes on
         return JobOutcome("failed", time.perf_counter() - start, reason=f"{type(exc).__name__}: {exc}".splitlines()[0])

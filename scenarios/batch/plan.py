@@ -1,7 +1,10 @@
 """What a sweep runs: `--grid`, `--sample` and `--seeds` over scenarios, expanded into validated runs.
 
-Every point is a scenario file plus `--set`-style overrides and a seed, loaded (so an unknown key or
-a bad value fails before anything runs) and identified by its resolved scenario's hash.
+Every point is a scenario file plus `--set`-style overrides and a seed (and with `--fast` its [fast]
+variant), loaded (so an unknown key or a bad value fails before anything runs) and identified by its
+resolved scenario's hash. `--sample N` places N joint points in the sampled keys' box by a Latin
+hypercube (default), scrambled Sobol' points or plain random draws (scipy.stats.qmc; benchmarks/sampling.py
+prints how evenly each covers the box).
 """
 
 from __future__ import annotations
@@ -11,9 +14,30 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import qmc
 
 from scenarios.spec import overrides
-from scenarios.spec.library import load
+from scenarios.spec.library import load, load_fast
+from scenarios.spec.scenario import Scenario
+
+SAMPLERS = ("lhs", "sobol", "random")
+"""`--sampler`: Latin hypercube (McKay, Beckman & Conover 1979), scrambled Sobol' (Owen 1998), plain random."""
+
+
+def unit_samples(sampler: str, n: int, dims: int, seed: int) -> np.ndarray:
+    """n points in the unit box [0, 1)^dims, from `seed`: a Latin hypercube (each of n equal strata of every
+    dimension holds one point), scrambled Sobol' points (n a power of 2: their balance needs it) or plain random."""
+    rng = np.random.default_rng(seed)
+    if sampler == "lhs":
+        return qmc.LatinHypercube(dims, seed=rng).random(n)
+    if sampler == "sobol":
+        if n < 1 or n & (n - 1):
+            below = 1 << (max(n, 1).bit_length() - 1)
+            raise ValueError(f"--sampler sobol: N must be a power of 2 for Sobol' points to stay balanced (got {n}; use {below} or {2 * below})")
+        return qmc.Sobol(dims, seed=rng).random(n)
+    if sampler == "random":
+        return rng.random((n, dims))
+    raise ValueError(f"--sampler {sampler!r}: use one of {', '.join(SAMPLERS)}")
 
 
 @dataclass(frozen=True)
@@ -65,13 +89,18 @@ class Range:
             raise ValueError(f"--sample {key}: a log-uniform range needs lo > 0 (got {lo})")
         return Range(key, lo, hi, log, integer=not log and isinstance(lo, int) and isinstance(hi, int))
 
-    def draw(self, rng: np.random.Generator, n: int) -> list:
-        """n values (Python ints or floats, so they render exactly as TOML)."""
+    def values(self, unit: np.ndarray) -> list:
+        """The key's values at unit coordinates in [0, 1): linear, log-linear (':log') or, for integer bounds, each of
+        lo..hi over an equal share of the unit interval; Python ints or floats, so they render exactly as TOML."""
+        u = np.asarray(unit, dtype=float)
         if self.integer:
-            return [int(v) for v in rng.integers(int(self.lo), int(self.hi), size=n, endpoint=True)]
+            span = int(self.hi) - int(self.lo) + 1
+            return [int(self.lo) + int(k) for k in np.minimum(np.floor(u * span), span - 1)]
         if self.log:
-            return [float(v) for v in np.exp(rng.uniform(math.log(self.lo), math.log(self.hi), size=n))]
-        return [float(v) for v in rng.uniform(self.lo, self.hi, size=n)]
+            scaled = np.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo)))
+        else:
+            scaled = self.lo + u * (self.hi - self.lo)
+        return [float(v) for v in np.clip(scaled, self.lo, self.hi)]  # rounding never steps outside the bounds
 
 
 @dataclass(frozen=True)
@@ -85,6 +114,11 @@ class SweepPoint:
     params: dict
     name: str
     hash: str
+    fast: bool = False
+
+    def scenario(self) -> Scenario:
+        """The scenario this point runs (its [fast] variant with --fast), validated."""
+        return _load(self.source, self.assignments, self.seed, self.fast)
 
     @property
     def run_name(self) -> str:
@@ -94,7 +128,8 @@ class SweepPoint:
 
 @dataclass(frozen=True)
 class SweepPlan:
-    """Scenarios x grid (cartesian) x samples (joint draws) x seeds, with fixed overrides for every run."""
+    """Scenarios x grid (cartesian) x samples (joint points of a sampler) x seeds, with fixed overrides for every run;
+    fast: each scenario's [fast] variant (a scenario without one is an error)."""
 
     sources: tuple[str, ...]
     grid: tuple[Axis, ...] = ()
@@ -103,6 +138,8 @@ class SweepPlan:
     seeds: int = 1
     fixed: tuple[str, ...] = ()
     sample_seed: int = 0
+    sampler: str = "lhs"
+    fast: bool = False
     keys: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -120,6 +157,8 @@ class SweepPlan:
             raise ValueError("nothing to sweep: give --grid key=v1,v2, --sample N key=lo:hi or --seeds N (N > 1)")
         if "seed" in keys and self.seeds > 1:
             raise ValueError("seed: swept by --grid and repeated by --seeds; use one of them")
+        if self.sampler not in SAMPLERS:
+            raise ValueError(f"--sampler {self.sampler!r}: use one of {', '.join(SAMPLERS)}")
         object.__setattr__(self, "keys", tuple(keys))
 
     def combinations(self) -> list[dict]:
@@ -127,8 +166,8 @@ class SweepPlan:
         grid = [dict(zip([a.key for a in self.grid], values)) for values in itertools.product(*(a.values for a in self.grid))]
         if not self.ranges:
             return grid
-        rng = np.random.default_rng(self.sample_seed)
-        drawn = {r.key: r.draw(rng, self.samples) for r in self.ranges}
+        unit = unit_samples(self.sampler, self.samples, len(self.ranges), self.sample_seed)
+        drawn = {r.key: r.values(unit[:, j]) for j, r in enumerate(self.ranges)}
         samples = [{key: drawn[key][i] for key in drawn} for i in range(self.samples)]
         return [{**g, **s} for g in grid for s in samples]
 
@@ -141,12 +180,16 @@ class SweepPlan:
                 assignments = (*self.fixed, *(overrides.assignment(k, v) for k, v in params.items()))
                 base_seed = load(source, set=list(assignments)).seed
                 for seed in range(base_seed, base_seed + self.seeds):
-                    scenario = load(source, set=list(assignments), seed=seed)
+                    scenario = _load(source, assignments, seed, self.fast)
                     if scenario.hash in seen:
                         continue
                     seen.add(scenario.hash)
-                    points.append(SweepPoint(len(points), source, assignments, seed, params, scenario.name, scenario.hash))
+                    points.append(SweepPoint(len(points), source, assignments, seed, params, scenario.name, scenario.hash, self.fast))
         return points
+
+
+def _load(source: str, assignments: tuple[str, ...], seed: int, fast: bool) -> Scenario:
+    return (load_fast if fast else load)(source, set=list(assignments), seed=seed)
 
 
 def _split_top_level(text: str) -> list[str]:

@@ -6,10 +6,12 @@ from pathlib import Path
 
 from rich import box
 from rich.console import Console, Group
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 from rich.text import Text
 
+from scenarios.batch import outcome
 from scenarios.batch.plan import SweepPlan
 from scenarios.batch.sweep import SweepResult, rank
 
@@ -22,7 +24,8 @@ class SweepProgress:
 
     def __init__(self, console: Console, quiet: bool = False) -> None:
         self.quiet = quiet
-        self.failed = 0
+        self.failed_to_run = 0
+        self.failed_expectation = 0
         self._bar = Progress(
             TextColumn("[bold]sweep[/]"),
             BarColumn(),
@@ -43,14 +46,23 @@ class SweepProgress:
         self._bar.update(self._task, total=to_run)
 
     def row(self, row: dict) -> None:
-        self.failed += row["status"] != "ok"
+        """A line per finished run: pass, FAIL (expectations) or failed to run (why); the bar counts both failures."""
+        ran = row["status"] == "ok"
+        self.failed_to_run += not ran
+        self.failed_expectation += ran and row.get("passed") is False
         if not self.quiet:
-            params = ", ".join(f"{k.removeprefix('param.')}={v}" for k, v in row.items() if k.startswith("param."))
-            mark = "[green]ok[/]" if row["status"] == "ok" else f"[bold red]failed[/]: {row['reason']}"
-            self._bar.console.print(
-                f"{mark} {row['scenario']} seed {row['seed']}{' ' + params if params else ''} ({row['wall_s']:.0f} s)", highlight=False
-            )
-        self._bar.update(self._task, advance=1, failed=f"[red]{self.failed} failed[/]" if self.failed else "")
+            label = escape(outcome.row_label(row))
+            if not ran:
+                line = f"[bold red]failed to run[/] {label} ({row['wall_s']:.0f} s): {escape(str(row['reason']))}"
+            elif row.get("passed") is False:
+                failed = row.get("expectations.failed", 0)
+                of = failed + row.get("expectations.passed", 0)
+                line = f"[bold red]FAIL[/] {label} ({row['wall_s']:.0f} s): {failed} of {of} expectations failed"
+            else:
+                line = f"[green]pass[/] {label} ({row['wall_s']:.0f} s)"
+            self._bar.console.print(line, highlight=False)
+        counts = [f"{n} {what}" for n, what in ((self.failed_expectation, "failed an expectation"), (self.failed_to_run, "failed to run")) if n]
+        self._bar.update(self._task, advance=1, failed=f"[red]{', '.join(counts)}[/]" if counts else "")
 
     def __enter__(self) -> SweepProgress:
         self._bar.start()
@@ -62,9 +74,10 @@ class SweepProgress:
 
 def summary(result: SweepResult, plan: SweepPlan, objective: str | None, minimize: bool, plots: list[Path]) -> Group:
     """Counts, failures, the best parameter combinations by the objective, and where the table and plots are."""
-    parts: list = [Text(f"{len(result.rows)} runs in the table: {result.ran} run now, {result.skipped} already done, {len(result.failed)} failed")]
+    parts: list = [Text(f"{len(result.rows)} runs in the table: {result.ran} run now, {result.skipped} already done")]
+    parts += [Text(line) for line in outcome.of_rows(result.rows).lines()]
     if result.failed:
-        failures = Table(title="failed runs", box=box.SIMPLE_HEAD)
+        failures = Table(title="runs that failed to run", box=box.SIMPLE_HEAD)
         for col in ("scenario", "seed", "reason"):
             failures.add_column(col, overflow="fold")
         for r in result.failed[:TOP]:

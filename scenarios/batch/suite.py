@@ -22,6 +22,7 @@ from riverbench import provenance
 from riverbench.atomic import atomic_path
 from scenarios.batch.workers import raise_terminated, stop
 from scenarios.score.regression import Comparison, MetricVerdict
+from scenarios.spec.scenario import Scenario
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,15 @@ class CaseResult:
         return self.name if self.seed is None else f"{self.name} seed {self.seed}"
 
 
+def case_scenario(job: Job, fast: bool) -> Scenario:
+    """What the suite runs for a job: with --fast the scenario's [fast] variant, or the full scenario when it has none
+    (as the library's baseline was measured; `run --fast` and `sweep --fast` refuse such a scenario instead)."""
+    from scenarios.spec.library import load
+
+    scenario = load(job.source, set=list(job.overrides), seed=job.seed)
+    return scenario.fast_variant() if fast else scenario
+
+
 def _run_case(index: int, job: Job, fast: bool, out_dir: str, workers: int, results) -> None:
     """Child process: load, run and report back one scenario (never raises)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the suite's to handle; it terminates us
@@ -79,11 +89,8 @@ def _run_case(index: int, job: Job, fast: bool, out_dir: str, workers: int, resu
     start = time.perf_counter()
     try:
         from scenarios.pipeline.runner import run
-        from scenarios.spec.library import load
 
-        scenario = load(job.source, set=list(job.overrides), seed=job.seed)
-        if fast:
-            scenario = scenario.fast_variant()
+        scenario = case_scenario(job, fast)
         result = run(scenario, out_dir, workers=workers)
         results.put(
             (

@@ -24,7 +24,6 @@ from scenarios.batch import table
 from scenarios.batch.job import Job, JobOutcome, run_job
 from scenarios.batch.plan import SweepPlan, SweepPoint
 from scenarios.batch.workers import JobResult, run_jobs
-from scenarios.spec.library import load
 
 PLAN_FILE = "sweep.json"
 RUNS = "runs"
@@ -161,7 +160,7 @@ def metric_names(point: SweepPoint) -> set[str]:
     from scenarios.score import metrics, vessel_log
     from scenarios.score.record import Recorder
 
-    scenario = load(point.source, set=list(point.assignments), seed=point.seed)
+    scenario = point.scenario()
     record = Recorder([m.id for m in scenario.matchers], [e.id for e in scenario.estimators], np.eye(4)).finish([])
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)

@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 from riverbench.atomic import atomic_path
 from scenarios.batch.table import PARAM_PREFIX
 from scenarios.report.plots import DPI, FILE_MODE, TRACK_COLOURS
+from scenarios.score import units
 
 MAX_LINES = 10
 """Lines on one figure; more combinations than this are left out (and the title says how many)."""
@@ -81,7 +82,9 @@ def figure(rows: list[dict], metrics: list[str], param: str, log_x: bool = False
         ax.set_xscale("log")
     seeds = max(len(v) for line in drawn for v in line.values)
     ax.set_xlabel(param)
-    ax.set_ylabel(metrics[0] if len(metrics) == 1 else _common_suffix(metrics))
+    quantities = {units.quantity_of(m) for m in metrics}
+    unit = f" ({quantities.pop().unit})" if len(quantities) == 1 and None not in quantities else ""
+    ax.set_ylabel((metrics[0] if len(metrics) == 1 else _common_suffix(metrics)) + unit)
     hidden = f" ({len(drawn) - MAX_LINES} more lines not drawn)" if len(drawn) > MAX_LINES else ""
     names = sorted({r["scenario"] for r in rows if r["status"] == "ok"})
     where = f"{names[0]}: " if len(names) == 1 else ""

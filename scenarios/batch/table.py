@@ -38,7 +38,7 @@ def flatten(metrics: dict) -> dict:
         elif node is None:
             out[path] = None
 
-    walk({k: v for k, v in metrics.items() if k not in ("expectations", "provenance")}, "")
+    walk({k: v for k, v in metrics.items() if k not in ("expectations", "provenance", "units")}, "")
     out["run.failures"] = len(metrics.get("run", {}).get("failures", []))
     outcomes = metrics.get("expectations", [])
     out["expectations.passed"] = sum(bool(o.get("pass")) for o in outcomes)

@@ -20,6 +20,9 @@ class Terminated(BaseException):
 
 
 def raise_terminated(signum, frame) -> None:
+    """Raise Terminated once; later SIGTERMs (the parent's stop() after a `kill` of the whole process group) are ignored
+    so that they cannot cut the run's clean-up short (stop() ends a process that takes too long with SIGKILL)."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     raise Terminated
 
 

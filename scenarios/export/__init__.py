@@ -7,7 +7,9 @@ Formats (see each module for the exact layout):
     pcd    directory: a binary PCD per scan (x y z intensity ring time), times.txt, poses.txt (pointfiles.py)
     ply    directory: a binary PLY per scan (same fields), times.txt, poses.txt (pointfiles.py)
     pcap   file: the HDL-32E's UDP data packets and GPRMC position packets, as the sensor streams them (pcap.py)
-    rosbag2 directory: a rosbag2 bag, sqlite3 storage: PointCloud2, NavSatFix, NMEA, tf and ground-truth odometry (rosbag.py)
+    rosbag2 directory: a rosbag2 bag, sqlite3 storage: PointCloud2, NavSatFix, NMEA, the mounts on /tf_static, truth
+           and each estimator's output as nav_msgs/Odometry (rosbag.py; the estimators run during the export); Imu and
+           MagneticField when the scenario simulates an IMU and a compass
     mcap   directory: the same rosbag2 bag, MCAP storage (rosbag.py)
 
 Frames are simulated and written one at a time; the output appears at `out` only when complete.
@@ -38,10 +40,13 @@ class Format:
     """A registered export: its writer and whether it writes a directory or a single file.
 
     A writer gets (info, frames, tmp): tmp is a fresh empty directory (or file) that becomes `out` once
-    the writer returns; it takes the frames one at a time and returns its counts, e.g. {"points": n}."""
+    the writer returns; it takes the frames one at a time and returns its counts, e.g. {"points": n}.
+    A format with `estimates` gets frames carrying the scenario's estimator outputs (its matchers and
+    estimators run during the export, as `riverbench run` runs them)."""
 
     write: Writer
     directory: bool = True
+    estimates: bool = False
 
 
 FORMATS: dict[str, Format] = {
@@ -49,8 +54,8 @@ FORMATS: dict[str, Format] = {
     "pcd": Format(pointfiles.write_pcd),
     "ply": Format(pointfiles.write_ply),
     "pcap": Format(pcap.write, directory=False),
-    "rosbag2": Format(rosbag.write_sqlite3),
-    "mcap": Format(rosbag.write_mcap),
+    "rosbag2": Format(rosbag.write_sqlite3, estimates=True),
+    "mcap": Format(rosbag.write_mcap, estimates=True),
 }
 
 
@@ -74,7 +79,7 @@ def export(
     out = Path(out)
     check_out(out, FORMATS[fmt].directory)
     start = time.perf_counter()
-    info, frames = open_stream(scenarios.load(scenario_file(source), set=set, seed=seed))
+    info, frames = open_stream(scenarios.load(scenario_file(source), set=set, seed=seed), estimates=FORMATS[fmt].estimates)
     metered = _Metered(frames, info.scans, progress)
     with staged_dir(out) if FORMATS[fmt].directory else atomic_path(out) as tmp:
         counts = FORMATS[fmt].write(info, metered, tmp)

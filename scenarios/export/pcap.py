@@ -34,12 +34,12 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Iterable
-from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 
 from riverbench.angles import wrap_deg
+from riverbench.unixtime import unix_ns
 from scenarios.export.frames import Frame, StreamInfo
 from sim.gnss_fix import GnssFix
 from sim.lidar import FIRING_CYCLE_S, LASER_INTERVAL_S, HDL32EConfig
@@ -67,7 +67,6 @@ DATA = np.dtype([("block", BLOCK, (BLOCKS,)), ("stamp", "<u4"), ("return_mode", 
 POSITION = np.dtype([("imu", "V198"), ("stamp", "<u4"), ("pps", "u1"), ("reserved", "V3"), ("nmea", "S306")])
 HEADERS = 14 + 20 + 8  # Ethernet, IPv4, UDP
 PCAP_HEADER = struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1)  # microsecond times, Ethernet
-UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 def write(info: StreamInfo, frames: Iterable[Frame], path: Path) -> dict[str, int]:
@@ -75,7 +74,7 @@ def write(info: StreamInfo, frames: Iterable[Frame], path: Path) -> dict[str, in
     rate = info.lidar_rate_hz
     if not RATE_RANGE_HZ[0] <= rate <= RATE_RANGE_HZ[1]:
         raise ValueError(f"pcap: the HDL-32E spins at {RATE_RANGE_HZ[0]:g}-{RATE_RANGE_HZ[1]:g} Hz, the lidar rate is {rate:g} Hz")
-    epoch_us = (info.epoch_utc - UNIX_EPOCH) // timedelta(microseconds=1)
+    epoch_us = unix_ns(info.epoch_utc) // 1000
     n_firings = int((1.0 / rate) / FIRING_CYCLE_S)  # as sim.HDL32E counts a revolution's firings
     packet_offset = np.arange(-(-n_firings // BLOCKS)) * BLOCKS * FIRING_CYCLE_S
     phase = -HDL32EConfig.model_fields["start_azimuth_deg"].default % 360.0

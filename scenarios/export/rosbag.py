@@ -3,30 +3,46 @@
     <out>/metadata.yaml                 rosbag2 metadata, version 8 (Iron's; QoS profiles as YAML strings, as Humble writes them)
     <out>/<scenario>_0.db3 | .mcap      the messages, named as `ros2 bag record` names a bag's first file
 
-Topics, named as the ROS drivers publish them (messages detailed in ros_messages.py):
-    /velodyne_points     sensor_msgs/PointCloud2, one per revolution (velodyne_pointcloud's transform node)
-    /gps/fix             sensor_msgs/NavSatFix, one per fix (nmea_navsat_driver, ublox, septentrio drivers)
-    /nmea_sentence       nmea_msgs/Sentence, each NMEA sentence of each fix (nmea_navsat_driver)
-    /gps/report          riverbench_msgs/GnssReport, each fix's DOPs and satellites (C/N0, elevation) unrounded
-    /tf_static           tf2_msgs/TFMessage, once at the stream's start: base_link -> velodyne (the lidar mount)
-                         and base_link -> gps (the antenna offset); offered QoS transient_local (latched)
-    /tf                  tf2_msgs/TFMessage, map -> base_link ground truth at each scan's stamp
-    /odom/ground_truth   nav_msgs/Odometry, the same pose
+Topics (messages detailed in ros_messages.py, the drivers' conventions in dialect.py):
+    /velodyne_points        sensor_msgs/PointCloud2, one per revolution, frame velodyne (velodyne_pointcloud's transform node)
+    /gps/fix                sensor_msgs/NavSatFix, one per fix, frame gps (nmea_navsat_driver; the topic
+                            robot_localization's navsat_transform_node subscribes to)
+    /nmea_sentence          nmea_msgs/Sentence, each NMEA sentence of each fix (nmea_navsat_driver's nmea_topic_driver input)
+    /gps/extended_fix       gps_msgs/GPSFix, one per fix, frame gps (gpsd_client): the DOPs and satellites NavSatFix lacks
+    /gps/report             riverbench_msgs/GnssReport, one per fix, frame gps (riverbench's own): its DOPs and satellites
+                            unrounded (GPSFix and NMEA give C/N0 and elevation in whole dB-Hz and degrees)
+    /tf_static              tf2_msgs/TFMessage, once at the stream's start: the boat's sensor mounts, base_link -> velodyne
+                            (the lidar mount) and base_link -> gps (the antenna offset); offered QoS transient_local (latched)
+    /imu/data               sensor_msgs/Imu, one per IMU sample, frame imu_link (xsens_mti_driver's topic and frame), only when an
+                            estimator is fed the IMU (the scenario simulates one); its mount base_link -> imu_link on /tf_static
+    /imu/mag                sensor_msgs/MagneticField, one per compass output, frame imu_link (xsens_mti_driver), tesla; only when
+                            an estimator is fed the compass
+    /ground_truth/odom      nav_msgs/Odometry map -> base_link, the true pose at each scan's stamp, covariance zero (exact)
+    /ground_truth/tf        tf2_msgs/TFMessage map -> base_link, the same pose, for viewers only: Foxglove takes transforms
+                            from every TFMessage topic, ROS tf2 listens on /tf and /tf_static only
+    /riverbench/<id>/odom   nav_msgs/Odometry map -> base_link, estimator <id>'s pose at each scan once it is initialised,
+                            with its covariance (x, y, yaw; the rest zero: not estimated)
+Nothing is published on /tf: a localization stack run on the bag publishes map -> odom -> base_link
+there itself (REP-105), and a second parent of base_link would break its tree.
 Every message is recorded at its header stamp, the simulation stamp rounded to the nanosecond, except
 that a fix the run took before a scan whose stamp rounds to the same nanosecond (a fix at 0.6 s and a
 scan at 0.6000000000000001 s: both sensors' epochs, on grids that meet, differ in the last bit of a
 float) is stamped 1 ns earlier: a reader orders a scan before a fix at the same stamp, as the
 simulation does at equal stamps, so the bag keeps the run's order and a replay feeds the estimators
-what the run fed them. The bag is written frame by frame: each frame's cloud and true pose are on disk
-before the next frame is read (the sqlite3 transaction is committed, the MCAP chunk closed: a chunk per
-revolution, the last revolution's fixes in one more), its fixes go with the next frame, once the next
-scan's stamp is known (for that rule), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
-or `kiss_icp_pipeline <out>`.
+what the run fed them. The bag is written frame by frame: each frame's cloud, truth and estimates are
+on disk before the next frame is read (the sqlite3 transaction is committed, the MCAP chunk closed: a
+chunk per revolution, the last revolution's fixes in one more); its fixes and IMU samples go with the
+next frame, once the next scan's stamp is known (for that rule), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
+`kiss_icp_pipeline <out>`, evo (`evo_traj bag2 <out> /ground_truth/odom /riverbench/ekf/odom`), or
+Foxglove with docs/foxglove/riverbench_layout.json.
+
+A new sensor adds its topic to `topics`, its messages to `scan_messages` or `between_scans` and its mount to `mounts`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
 
@@ -39,6 +55,16 @@ from scenarios.export import ros_messages as msgs
 from scenarios.export.frames import Frame, StreamInfo
 
 INFINITE = QosTime(9223372036, 854775807)  # RMW_DURATION_INFINITE, as Humble and later record it
+CLOUD_TOPIC = "/velodyne_points"
+FIX_TOPIC = "/gps/fix"
+NMEA_TOPIC = "/nmea_sentence"
+EXTENDED_FIX_TOPIC = "/gps/extended_fix"
+REPORT_TOPIC = "/gps/report"
+STATIC_TF_TOPIC = "/tf_static"
+TRUTH_TOPIC = "/ground_truth/odom"
+TRUTH_TF_TOPIC = "/ground_truth/tf"
+IMU_TOPIC = "/imu/data"
+MAG_TOPIC = "/imu/mag"
 
 
 def offered(durability: QosDurability) -> list[Qos]:
@@ -46,15 +72,44 @@ def offered(durability: QosDurability) -> list[Qos]:
     return [Qos(QosHistory.UNKNOWN, 0, QosReliability.RELIABLE, durability, INFINITE, INFINITE, QosLiveliness.AUTOMATIC, INFINITE, False)]
 
 
-TOPICS = {
-    "/velodyne_points": ("sensor_msgs/msg/PointCloud2", offered(QosDurability.VOLATILE)),
-    "/gps/fix": ("sensor_msgs/msg/NavSatFix", offered(QosDurability.VOLATILE)),
-    "/nmea_sentence": ("nmea_msgs/msg/Sentence", offered(QosDurability.VOLATILE)),
-    "/gps/report": (msgs.GNSS_REPORT, offered(QosDurability.VOLATILE)),
-    "/tf_static": ("tf2_msgs/msg/TFMessage", offered(QosDurability.TRANSIENT_LOCAL)),
-    "/tf": ("tf2_msgs/msg/TFMessage", offered(QosDurability.VOLATILE)),
-    "/odom/ground_truth": ("nav_msgs/msg/Odometry", offered(QosDurability.VOLATILE)),
-}
+@dataclass(frozen=True)
+class Topic:
+    """A topic of the bag: its name, message type and the QoS its publisher offers."""
+
+    name: str
+    msgtype: str
+    qos: list[Qos]
+
+
+def estimate_topic(estimator_id: str) -> str:
+    """The Odometry topic of an estimator's output (estimator ids are valid ROS name tokens: scenarios.spec ID_PATTERN)."""
+    return f"/riverbench/{estimator_id}/odom"
+
+
+def topics(info: StreamInfo) -> list[Topic]:
+    """Every topic of the stream's bag, the estimators' last."""
+    volatile = offered(QosDurability.VOLATILE)
+    return [
+        Topic(CLOUD_TOPIC, "sensor_msgs/msg/PointCloud2", volatile),
+        Topic(FIX_TOPIC, "sensor_msgs/msg/NavSatFix", volatile),
+        Topic(NMEA_TOPIC, "nmea_msgs/msg/Sentence", volatile),
+        Topic(EXTENDED_FIX_TOPIC, "gps_msgs/msg/GPSFix", volatile),
+        Topic(REPORT_TOPIC, msgs.GNSS_REPORT, volatile),
+        Topic(STATIC_TF_TOPIC, "tf2_msgs/msg/TFMessage", offered(QosDurability.TRANSIENT_LOCAL)),
+        Topic(TRUTH_TOPIC, "nav_msgs/msg/Odometry", volatile),
+        Topic(TRUTH_TF_TOPIC, "tf2_msgs/msg/TFMessage", volatile),
+        *inertial_topics(info),
+        *(Topic(estimate_topic(eid), "nav_msgs/msg/Odometry", volatile) for eid in info.estimators),
+    ]
+
+
+def inertial_topics(info: StreamInfo) -> list[Topic]:
+    """The IMU's and the compass's topics, when the stream has them."""
+    volatile = offered(QosDurability.VOLATILE)
+    if info.inertial is None:
+        return []
+    mag = [Topic(MAG_TOPIC, "sensor_msgs/msg/MagneticField", volatile)] if info.inertial.compass_noise_ut is not None else []
+    return [Topic(IMU_TOPIC, "sensor_msgs/msg/Imu", volatile), *mag]
 
 
 def write_sqlite3(info: StreamInfo, frames: Iterable[Frame], out: Path) -> dict[str, int]:
@@ -75,15 +130,13 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
     counts = {"messages": 0, "points": 0, "fixes": 0}
     with Writer(bag, version=8, storage_plugin=storage) as writer:
         flush = streaming(writer, storage)
-        connections = {
-            topic: writer.add_connection(topic, msgtype, typestore=store, offered_qos_profiles=qos) for topic, (msgtype, qos) in TOPICS.items()
-        }
+        connections = {t.name: writer.add_connection(t.name, t.msgtype, typestore=store, offered_qos_profiles=t.qos) for t in topics(info)}
         for batch in chain([static_messages(store, info)], frame_batches(store, info, frames)):
             for topic, ns, msg in batch:
                 writer.write(connections[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
                 counts["messages"] += 1
-                counts["points"] += msg.width if topic == "/velodyne_points" else 0
-                counts["fixes"] += topic == "/gps/fix"
+                counts["points"] += msg.width if topic == CLOUD_TOPIC else 0
+                counts["fixes"] += topic == FIX_TOPIC
             flush()
     for path in bag.iterdir():
         path.rename(out / path.name)
@@ -91,35 +144,61 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
     return counts
 
 
-def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, object]]:
-    """/tf_static at the stream's start: base_link -> velodyne (the mount) and base_link -> gps (the antenna offset)."""
-    ns = msgs.ros_ns(info.epoch_utc, info.t_start)
+def mounts(info: StreamInfo) -> list[tuple[str, np.ndarray]]:
+    """The boat's fixed sensor frames, (child frame, 4x4 pose base_link<-child): the lidar mount, the antenna offset and,
+    with an IMU, its position (axes base_link's, sim.imu)."""
     antenna = np.eye(4)
     antenna[:3, 3] = info.antenna_offset_m
-    return [
-        (
-            "/tf_static",
-            ns,
-            msgs.tf_message(
-                store,
-                [
-                    msgs.transform(store, ns, msgs.BASE_FRAME, msgs.LIDAR_FRAME, info.mount),
-                    msgs.transform(store, ns, msgs.BASE_FRAME, msgs.GPS_FRAME, antenna),
-                ],
-            ),
-        )
-    ]
+    out = [(msgs.LIDAR_FRAME, info.mount), (msgs.GPS_FRAME, antenna)]
+    if info.inertial is not None:
+        imu = np.eye(4)
+        imu[:3, 3] = info.inertial.lever_m
+        out.append((msgs.IMU_FRAME, imu))
+    return out
+
+
+def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, object]]:
+    """/tf_static at the stream's start: base_link -> each mount."""
+    ns = msgs.ros_ns(info.epoch_utc, info.t_start)
+    transforms = [msgs.transform(store, ns, msgs.BASE_FRAME, child, pose) for child, pose in mounts(info)]
+    return [(STATIC_TF_TOPIC, ns, msgs.tf_message(store, transforms))]
 
 
 def frame_batches(store: Typestore, info: StreamInfo, frames: Iterable[Frame]) -> Iterator[list[tuple[str, int, object]]]:
-    """The messages to write (and flush) as each frame comes: the previous frame's fixes, stamped now that the next scan's
-    stamp is known (see fix_ns), then this frame's scan; the last frame's fixes at the end."""
+    """The messages to write (and flush) as each frame comes, in time order: the previous frame's fixes and IMU samples,
+    stamped now that this scan's stamp is known (see fix_ns), then this frame's scan messages; the last frame's at the end."""
     previous: Frame | None = None
     for frame in frames:
-        yield (fix_messages(store, info, previous, frame.stamp) if previous is not None else []) + scan_messages(store, info, frame)
+        yield (between_scans(store, info, previous, frame.stamp) if previous is not None else []) + scan_messages(store, info, frame)
         previous = frame
-    if previous is not None and previous.fixes:
-        yield fix_messages(store, info, previous, None)
+    if previous is not None and (rest := between_scans(store, info, previous, None)):
+        yield rest
+
+
+def scan_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
+    """The frame's cloud, true pose and estimates at the scan's stamp."""
+    ns = msgs.ros_ns(info.epoch_utc, frame.stamp)
+    truth = msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)
+    return [
+        (CLOUD_TOPIC, ns, msgs.point_cloud(store, ns, frame.scan)),
+        (TRUTH_TOPIC, ns, msgs.odometry(store, ns, frame.base_pose, msgs.BASE_FRAME)),
+        (TRUTH_TF_TOPIC, ns, msgs.tf_message(store, [truth])),
+        *((estimate_topic(eid), ns, msgs.odometry(store, ns, e.pose, msgs.BASE_FRAME, e.cov)) for eid, e in frame.estimates.items()),
+    ]
+
+
+def between_scans(store: Typestore, info: StreamInfo, frame: Frame, next_scan: float | None) -> list[tuple[str, int, object]]:
+    """The frame's fixes (NavSatFix, GPSFix, sentences, report) and IMU samples in time order, up to the next scan at `next_scan`."""
+    gnss = []
+    for fix in frame.fixes:
+        t = fix_ns(info, fix.stamp, next_scan)
+        gnss += [
+            (FIX_TOPIC, t, msgs.nav_sat_fix(store, t, fix)),
+            (EXTENDED_FIX_TOPIC, t, msgs.gps_fix(store, t, fix)),
+            *((NMEA_TOPIC, t, s) for s in msgs.sentences(store, t, fix)),
+            (REPORT_TOPIC, t, msgs.gnss_report(store, t, fix)),
+        ]
+    return sorted(gnss + inertial_messages(store, info, frame), key=lambda message: message[1])
 
 
 def fix_ns(info: StreamInfo, stamp: float, next_scan: float | None) -> int:
@@ -130,26 +209,22 @@ def fix_ns(info: StreamInfo, stamp: float, next_scan: float | None) -> int:
     return ns
 
 
-def scan_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
-    """The frame's cloud and true pose at the scan's stamp."""
-    ns = msgs.ros_ns(info.epoch_utc, frame.stamp)
-    return [
-        ("/velodyne_points", ns, msgs.point_cloud(store, ns, frame.scan)),
-        ("/tf", ns, msgs.tf_message(store, [msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)])),
-        ("/odom/ground_truth", ns, msgs.odometry(store, ns, frame.base_pose)),
-    ]
-
-
-def fix_messages(store: Typestore, info: StreamInfo, frame: Frame, next_scan: float | None) -> list[tuple[str, int, object]]:
-    """Each of the frame's fixes, its sentences and its report, at the fix's stamp (kept before the next scan at `next_scan`)."""
+def inertial_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
+    """The frame's IMU samples on /imu/data and compass outputs on /imu/mag, each at its stamp."""
+    if info.inertial is None:
+        return []
+    rate = info.inertial.rate_hz
+    gyro_var, accel_var = info.inertial.gyro_noise**2 * rate, info.inertial.accel_noise**2 * rate
     out = []
-    for fix in frame.fixes:
-        t = fix_ns(info, fix.stamp, next_scan)
-        out += [
-            ("/gps/fix", t, msgs.nav_sat_fix(store, t, fix)),
-            *(("/nmea_sentence", t, s) for s in msgs.sentences(store, t, fix)),
-            ("/gps/report", t, msgs.gnss_report(store, t, fix)),
-        ]
+    for batch in frame.imu:
+        for stamp, gyro, accel in zip(batch.stamp, batch.gyro, batch.accel):
+            t = msgs.ros_ns(info.epoch_utc, float(stamp))
+            out.append((IMU_TOPIC, t, msgs.imu(store, t, gyro, accel, gyro_var, accel_var)))
+    if info.inertial.compass_noise_ut is not None:
+        variance = (info.inertial.compass_noise_ut * 1e-6) ** 2
+        for heading in frame.headings:
+            t = msgs.ros_ns(info.epoch_utc, heading.stamp)
+            out.append((MAG_TOPIC, t, msgs.magnetic_field(store, t, heading.field_ut, variance)))
     return out
 
 

@@ -18,7 +18,8 @@ Observation (Dict):
 Reward per step (RewardConfig): progress_weight x metres gained along the route by the true
 position, minus cross_track_weight x |true cross-track| m x step seconds, minus collision_penalty
 on a collision. Terminated on a collision or at the end of the stretch; truncated at the time
-limit (control.time_limit_factor x the stretch's planned time).
+limit (control.time_limit_factor x the stretch's planned time). `info["outcome"]` (completed,
+collision, time_limit) is there only on the step that ends the episode.
 """
 
 from __future__ import annotations
@@ -149,7 +150,10 @@ class RiverNavEnv(gymnasium.Env):
             reward -= cfg.collision_penalty
         terminated = log.outcome in ("collision", "completed")
         truncated = log.outcome == "time_limit"
-        return self._observe(), float(reward), terminated, truncated, self._info()
+        info = self._info()
+        if terminated or truncated:
+            info["outcome"] = log.outcome  # only at the end: mid-episode the log's "interrupted" would be a false outcome
+        return self._observe(), float(reward), terminated, truncated, info
 
     def baseline_action(self) -> np.ndarray:
         """What the bench's LOS autopilot would command now, steering on the observed estimator's position and the
@@ -190,7 +194,6 @@ class RiverNavEnv(gymnasium.Env):
             "true_heading_error_rad": wrap_angle(yaw - float(heading)),
             "clearance_m": clearance.distance_m,
             "nearest_part": self.world.parts[clearance.part].name if clearance.part >= 0 else "",
-            "outcome": log.outcome,
             "collision_part": log.contact.part if log.contact else "",
         }
         # errors only when there is something to compare (NaN would make equal episodes compare unequal)

@@ -13,6 +13,8 @@ from scenarios.pipeline.matcher_pool import MatcherSetup
 from scenarios.pipeline.vessel_run import VesselRun
 from scenarios.score.record import Recorder
 from scenarios.spec.scenario import Scenario
+from sim.imu import Imu
+from sim.magnetic_compass import MagneticCompass
 from sim.trajectory import mount_matrix
 
 
@@ -52,6 +54,11 @@ def assemble(scenario: Scenario, world: worlds.World | None = None) -> Assembly:
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
     t_start, t_end = scenario.stretch.times(planned)
     vessel_run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
+    # the IMU and the compass exist only when an estimator is fed them (the default stack simulates neither)
+    if scenario.imu is not None:
+        vessel_run.imu = Imu(scenario.imu, seed=scenario.seed, origin_lat_deg=world.origin[0])
+    if scenario.compass is not None:
+        vessel_run.compass = MagneticCompass(world, scenario.compass, seed=scenario.seed)
     return Assembly(scenario, world, lidar, receiver, vessel_run, t_start, t_end)
 
 

@@ -6,7 +6,7 @@ LOOKAHEAD_SCANS ahead), then in time order each estimator gets `add_match(stamp,
 fix goes to every estimator's `add_fix`, which returns the monitor's verdict. A component that
 raises, or answers with something else than a 4x4 pose or a Verdict, is recorded as failed from
 that input on and the rest goes on. A scan the recording could not give (BadScan) is a recorded
-failure too.
+failure too. An observer (the live view), when given, is told of each scan and fix as it is recorded.
 """
 
 from __future__ import annotations
@@ -20,13 +20,17 @@ from typing import TextIO
 import numpy as np
 
 from fusion.verdict import Verdict
+from scenarios.pipeline.inertial import HeadingEvent, ImuEvent
 from scenarios.pipeline.matcher_pool import MatcherPool
+from scenarios.pipeline.observer import RunObserver
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.score.record import Recorder, nan_pose
 from scenarios.spec.scenario import Scenario
 
 LOOKAHEAD_SCANS = 1
 """Scans read or simulated ahead of the one being matched (the overlap of reading or simulation and matching)."""
+PLANAR_AXES = [0, 1, 5]
+"""Rows and columns of x, y and yaw in a 6x6 pose covariance [x, y, z, roll, pitch, yaw] (ROS geometry_msgs order)."""
 
 
 @dataclass(frozen=True)
@@ -57,14 +61,17 @@ class Feed:
         base_pose: Callable[[float], np.ndarray],
         t_start: float,
         log_fix: Callable[[object], None] | None = None,
-        after_scan: Callable[[float, dict], None] | None = None,
+        on_scan: Callable[[float, dict], None] | None = None,
+        observer: RunObserver | None = None,
     ) -> None:
         """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
-        after_scan(stamp, results) after each scan is recorded, with the matchers' results by id (the estimators' state is
-        then the one recorded at that scan)."""
+        on_scan(stamp, results) once every estimator has a scan and before any later input (e.g. to read their poses and
+        covariances), with the matchers' results of that scan by id;
+        observer, when given, with each scan and fix as they are recorded (the live view)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
-        self.log_fix, self.after_scan = log_fix, after_scan
-        self.feeds = {e.id: e.matcher for e in scenario.estimators}
+        self.log_fix, self.on_scan, self.observer = log_fix, on_scan, observer
+        self.sensors = {e.id: set(e.sensors_used) for e in scenario.estimators}
+        self.feeds = {e.id: e.matcher if "odometry" in self.sensors[e.id] else None for e in scenario.estimators}
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
         self.queue: deque = deque()
@@ -79,16 +86,19 @@ class Feed:
         except Exception:  # a plugin's pose may raise anything: steering sees an unknown pose, the scan step records the failure
             return nan_pose()
 
-    def yaw_sd_deg(self, estimator_id: str) -> float:
-        """An estimator's current heading standard deviation (deg) from its covariance; NaN when it has none or failed."""
+    def cov_of(self, estimator_id: str) -> np.ndarray | None:
+        """An estimator's current covariance as 6x6 [x, y, z, roll, pitch, yaw]: its 3x3 (x, y, yaw) in those rows and
+        columns, the rest zero (not estimated); None when it failed or gives no finite 3x3 or 6x6."""
         if estimator_id in self.dead:
-            return math.nan
+            return None
         try:
             cov = np.asarray(self.estimators[estimator_id].cov, dtype=float)
-        except Exception:  # a plugin's covariance may raise anything: no heading known
-            return math.nan
-        variance = float(cov[2, 2]) if cov.shape == (3, 3) else math.nan
-        return math.degrees(math.sqrt(variance)) if math.isfinite(variance) and variance >= 0 else math.nan
+        except Exception:  # a plugin's cov may raise anything or be anything: no covariance
+            return None
+        if cov.shape == (3, 3):
+            cov, planar = np.zeros((6, 6)), cov
+            cov[np.ix_(PLANAR_AXES, PLANAR_AXES)] = planar
+        return cov if cov.shape == (6, 6) and np.isfinite(cov).all() else None
 
     def push(self, event) -> None:
         """Take the next event (ScanEvent, BadScan, or a fix event with `.fix`) and process what is due."""
@@ -126,15 +136,26 @@ class Feed:
             if isinstance(event, ScanEvent):
                 self._scan(event, *self.pool.collect())
             else:
-                self._fix(event)
+                self._other(event)
         while self.queue and not isinstance(self.queue[0], ScanEvent):
-            self._fix(self.queue.popleft())
+            self._other(self.queue.popleft())
 
-    def _each_estimator(self, call: Callable[[str, object], object], stamp: float) -> dict:
-        """call(id, estimator) for every live estimator; one that raises is failed from here on."""
+    def _other(self, event) -> None:
+        """A fix, a batch of IMU samples or a compass heading to the estimators fed that sensor."""
+        if isinstance(event, ImuEvent):
+            self._each_estimator(lambda eid, est: est.add_imu(event.samples), event.stamp, "imu")
+        elif isinstance(event, HeadingEvent):
+            used = self._each_estimator(lambda eid, est: bool(est.add_heading(event.sample)), event.stamp, "compass")
+            users = [eid for eid in self.estimators if "compass" in self.sensors[eid]]
+            self.recorder.heading(event.stamp, event.sample.yaw, event.truth_yaw, {eid: used.get(eid, False) for eid in users})
+        else:
+            self._fix(event)
+
+    def _each_estimator(self, call: Callable[[str, object], object], stamp: float, sensor: str | None = None) -> dict:
+        """call(id, estimator) for every live estimator (fed `sensor`, when given); one that raises is failed from here on."""
         out = {}
         for eid, est in self.estimators.items():
-            if eid in self.dead:
+            if eid in self.dead or (sensor is not None and sensor not in self.sensors[eid]):
                 continue
             try:
                 out[eid] = call(eid, est)
@@ -155,20 +176,25 @@ class Feed:
             return checked_pose(est.pose)
 
         poses = self._each_estimator(step, event.stamp)
-        self.recorder.scan(event.stamp, self.base_pose(event.stamp), results, {eid: poses.get(eid, nan_pose()) for eid in self.estimators})
-        if self.after_scan is not None:
-            self.after_scan(event.stamp, results)
+        truth, estimates = self.base_pose(event.stamp), {eid: poses.get(eid, nan_pose()) for eid in self.estimators}
+        self.recorder.scan(event.stamp, truth, results, estimates)
+        if self.observer is not None:
+            self.observer.scan(event, truth, estimates)
+        if self.on_scan is not None:
+            self.on_scan(event.stamp, results)
 
     def _fix(self, event) -> None:
-        """One fix to every estimator, its verdicts into the record, then to log_fix."""
+        """One fix to every estimator, its verdicts into the record, then to log_fix and the observer."""
         fix = event.fix
-        verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp)
-        # a failed estimator raises no alarm: its fixes count as trusted with no statistic
+        verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp, "gnss")
+        # a failed estimator (or one not fed GPS) raises no alarm: its fixes count as trusted with no statistic
         self.recorder.fix(
             fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan) for eid in self.estimators}
         )
         if self.log_fix is not None:
             self.log_fix(event)
+        if self.observer is not None:
+            self.observer.fix(fix, verdicts)
 
 
 def build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:

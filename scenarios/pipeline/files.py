@@ -3,6 +3,17 @@
 TUM lines are 'timestamp tx ty tz qx qy qz qw' (world ENU, base_link, unit quaternion), the format
 evo and the TUM RGB-D tools read; a pose the estimator did not have yet (before initialisation) is
 left out, so every row is a real estimate.
+
+Time: the run directory's TUM files carry UNIX time, seconds since 1970-01-01 UTC without leap seconds
+(riverbench.unixtime), exact to the nanosecond ('%.9f'), as evo and ROS tools expect: the scenario's
+time t is `[gnss] epoch_utc` + t. A comment line names the UNIX time of the scenario's time 0, so the
+report (and `read_tum(..., scenario_time=True)`) can put the rows back on the scenario's clock, as
+gps.csv, windows.csv and scans.csv keep it.
+Height: the run's trajectories are written at the waterline (`waterline`: z = 0, the still water
+surface that base_link's origin sits on), not with the wave heave nor an estimator's height: every
+error the bench scores is horizontal (scenarios.score.metrics), so evo's default APE (3-D translation)
+on these files is the bench's planar APE. The attitude (roll, pitch, yaw) is written as it is; the
+bench's yaw error is heading only (evo's angle_deg also counts roll and pitch: equal in calm water).
 """
 
 from __future__ import annotations
@@ -13,31 +24,58 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from riverbench.unixtime import parse_seconds_ns, seconds_text
 from scenarios.pipeline.traffic_log import TrafficLog
 from scenarios.score import windows as win
 from scenarios.score.record import RunRecord
 
 TUM_HEADER = "# timestamp tx ty tz qx qy qz qw\n"
+TIME_ZERO = "# time zero (UNIX s):"
+"""Starts the comment line that gives the UNIX time of the scenario's time 0 (stamps are UNIX seconds)."""
 
 
-def write_tum(path: Path, t: np.ndarray, poses: np.ndarray) -> int:
-    """Write the finite poses (N, 4, 4) at times t; returns the number of rows."""
+def waterline(poses: np.ndarray) -> np.ndarray:
+    """The poses (N, 4, 4) with their origin moved to the still water surface (z = 0), attitude unchanged."""
+    out = np.array(poses, dtype=float, copy=True)
+    out[:, 2, 3] = 0.0
+    return out
+
+
+def write_tum(path: Path, t: np.ndarray, poses: np.ndarray, zero_ns: int | None = None) -> int:
+    """Write the finite poses (N, 4, 4) at times t; returns the number of rows. With `zero_ns` (the UNIX nanoseconds
+    of time 0) the stamps are written as UNIX seconds, exactly to the nanosecond, and a comment line says so;
+    without it, as the seconds given."""
     ok = np.isfinite(poses).all(axis=(1, 2))
-    rows = np.zeros((int(ok.sum()), 8))
-    if ok.any():
-        rows[:, 0] = t[ok]
-        rows[:, 1:4] = poses[ok, :3, 3]
-        rows[:, 4:8] = Rotation.from_matrix(poses[ok, :3, :3]).as_quat()
     with open(path, "w") as f:
         f.write(TUM_HEADER)
-        np.savetxt(f, rows, fmt=["%.6f"] + ["%.6f"] * 3 + ["%.9f"] * 4)
-    return len(rows)
+        if zero_ns is not None:
+            f.write(f"{TIME_ZERO} {seconds_text(zero_ns)} (stamps: UNIX seconds, UTC; scenario time t is stamp - time zero)\n")
+        if not ok.any():
+            return 0
+        stamps = [seconds_text(zero_ns + round(float(s) * 1e9)) if zero_ns is not None else f"{s:.9f}" for s in t[ok]]
+        position = poses[ok, :3, 3]
+        quaternion = Rotation.from_matrix(poses[ok, :3, :3]).as_quat()
+        for stamp, p, q in zip(stamps, position, quaternion):
+            f.write(f"{stamp} {p[0]:.6f} {p[1]:.6f} {p[2]:.6f} {q[0]:.9f} {q[1]:.9f} {q[2]:.9f} {q[3]:.9f}\n")
+    return int(ok.sum())
 
 
-def read_tum(path: Path) -> np.ndarray:
-    """(N, 8) rows of a TUM file ((0, 8) when it holds only the header, e.g. an estimator that never initialised)."""
-    rows = [line.split() for line in Path(path).read_text().splitlines() if line.strip() and not line.startswith("#")]
-    return np.array(rows, dtype=float).reshape(-1, 8)
+def read_tum(path: Path, scenario_time: bool = False) -> np.ndarray:
+    """(N, 8) rows of a TUM file ((0, 8) when it holds only the header, e.g. an estimator that never initialised).
+    Stamps as written (UNIX seconds for a run's files); with `scenario_time`, seconds since the scenario's time 0,
+    exact (a file without the time-zero line is taken to be on the scenario's clock already)."""
+    zero, rows, stamps = 0, [], []
+    for line in Path(path).read_text().splitlines():
+        if line.startswith(TIME_ZERO):
+            zero = parse_seconds_ns(line[len(TIME_ZERO) :].split()[0])
+        elif line.strip() and not line.startswith("#"):
+            fields = line.split()
+            rows.append(fields)
+            stamps.append(fields[0])
+    out = np.array(rows, dtype=float).reshape(-1, 8)
+    if scenario_time:
+        out[:, 0] = [(parse_seconds_ns(s) - zero) / 1e9 for s in stamps]
+    return out
 
 
 def write_gps_csv(path: Path, rec: RunRecord, truth: bool = True) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import queue
 import signal
+import time
 import traceback
 from collections import deque
 from dataclasses import dataclass
@@ -182,18 +183,29 @@ class MatcherPool:
         for proc, inbox, outbox, _, state in self._procs:
             if proc.is_alive() and not state["dead"]:
                 inbox.put(None)
-                try:
-                    while True:
-                        kind, payload = outbox.get(timeout=10.0)
-                        if kind == "rss":
-                            self.workers_rss_mb += payload
-                            break
-                except Exception:
-                    pass
+                self.workers_rss_mb += self._final_rss(proc, outbox)
             proc.join(timeout=5.0)
             if proc.is_alive():
                 proc.terminate()
         self._procs = []
+
+    @staticmethod
+    def _final_rss(proc, outbox, wait_s: float = 10.0) -> float:
+        """The stopping worker's peak memory, skipping results nobody collected; 0 if it dies first (a SIGTERM to the
+        whole process group ends it as the caller unwinds: no waiting wait_s for an answer that cannot come)."""
+        deadline = time.monotonic() + wait_s
+        while time.monotonic() < deadline:
+            try:
+                kind, payload = outbox.get(timeout=0.2)
+            except queue.Empty:
+                if not proc.is_alive():
+                    return 0.0
+                continue
+            except Exception:  # a message half-sent by a dying worker
+                return 0.0
+            if kind == "rss":
+                return payload
+        return 0.0
 
     def __enter__(self) -> MatcherPool:
         return self

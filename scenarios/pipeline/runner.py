@@ -5,7 +5,8 @@ Streaming: each revolution is simulated, handed to the matchers (in worker proce
 revolution is ray cast while this one is matched), fed to the estimators with the fixes in time
 order, reduced to a few numbers and dropped; memory stays flat in scenario length. The directory is
 written under a temporary name and renamed at the end: a run that fails or is interrupted leaves
-nothing behind and says at which scan and why.
+nothing behind and says at which scan and why. An observer (the live view, scenarios.view) can watch
+the run as it streams; without one the run does no extra work.
 """
 
 from __future__ import annotations
@@ -25,12 +26,14 @@ import tomli_w
 
 from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
+from riverbench.unixtime import unix_ns
 from scenarios.pipeline import files
 from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.pipeline.matcher_pool import MatcherPool
+from scenarios.pipeline.observer import RunObserver
 from scenarios.pipeline.traffic_log import TrafficLog
-from scenarios.score import metrics, vessel_log
+from scenarios.score import metrics, units, vessel_log
 from scenarios.score import windows as win
 from scenarios.score.expectations import Outcome
 from scenarios.score.record import RunRecord
@@ -70,12 +73,14 @@ def run(
     workers: int = 2,
     report: bool = True,
     progress: Callable[[float, float, float, int], None] | None = None,
+    observer: RunObserver | None = None,
 ) -> RunResult:
     """Run `scenario` and write its run directory (default runs/<name>-<UTC time>/).
 
     workers: processes in use (1: everything in this process; 2, the default: matchers overlap
     with the simulation). report: also write report.md, report.html and plots/. progress, if
-    given, is called as progress(t, t_start, t_end, scans) after each event.
+    given, is called as progress(t, t_start, t_end, scans) after each event. observer, if given,
+    sees the run's world, each scan and fix, and its end (scenarios.pipeline.observer).
     """
     out = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -83,26 +88,32 @@ def run(
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        metrics_tree, outcomes = _run_into(scenario, tmp, workers, report, progress)
+        metrics_tree, outcomes = _run_into(scenario, tmp, workers, report, progress, observer)
+        if observer is not None:
+            observer.close(keep=True)  # before the rename: what it writes into the run directory is complete
         os.chmod(tmp, 0o755)  # mkdtemp made it private; a run directory is for everyone to read
         if out.exists():
             out.rmdir()
         os.replace(tmp, out)
     finally:
+        if observer is not None:
+            observer.close(keep=False)  # a no-op after close(keep=True)
         shutil.rmtree(tmp, ignore_errors=True)
     return RunResult(scenario, out, metrics_tree, outcomes)
 
 
-def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progress) -> tuple[dict, list[Outcome]]:
+def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progress, observer: RunObserver | None) -> tuple[dict, list[Outcome]]:
     wall_start = time.perf_counter()
     stack = assemble(scenario)
+    if observer is not None:
+        observer.begin(stack, tmp)
     lidar, receiver, vessel_run, t_start, t_end = stack.lidar, stack.receiver, stack.vessel_run, stack.t_start, stack.t_end
     trajectory = vessel_run.trajectory
     traffic_log = TrafficLog(vessel_run.world)
     recorder = stack.recorder()
     setups = matcher_setups(scenario)
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()))
+        feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()), observer=observer)
         feed.drive(
             traffic_log.tap(vessel_run.events(feed)),
             lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
@@ -144,20 +155,21 @@ def _write(
 ) -> tuple[dict, list[Outcome]]:
     windows = win.find(rec.fixes, rec.injected, fix_period)
     tree = metrics.compute(rec, windows, run_info, vessel)
-    safe = metrics.json_safe(tree)
+    safe = units.rounded(metrics.json_safe(tree))  # expectations judge the numbers metrics.json shows
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]
-    safe = {"provenance": provenance.collect(), **safe}
+    safe = {"provenance": provenance.collect(), **safe, "units": units.block()}
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
         + tomli_w.dumps(scenario.resolved())
     )
     (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")
-    files.write_tum(tmp / "groundtruth.tum", rec.scan_t, rec.truth)
+    zero = unix_ns(scenario.gnss.epoch_utc)  # UNIX time of scenario time 0 (scenarios.pipeline.files: time, height)
+    files.write_tum(tmp / "groundtruth.tum", rec.scan_t, files.waterline(rec.truth), zero)
     for eid, poses in rec.estimates.items():
-        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, poses)
+        files.write_tum(tmp / f"{eid}.tum", rec.scan_t, files.waterline(poses), zero)
     for mid, track in rec.matches.items():
-        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, track.pose)
+        files.write_tum(tmp / f"{mid}.tum", rec.scan_t, files.waterline(track.pose), zero)
     files.write_gps_csv(tmp / "gps.csv", rec)
     errors = {eid: metrics.horizontal_error(p, rec.truth) for eid, p in rec.estimates.items()}
     files.write_windows_csv(tmp / "windows.csv", windows, rec, errors)

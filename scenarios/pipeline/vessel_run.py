@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.pipeline.closed_loop import ClosedLoop, autopiloted, watched
+from scenarios.pipeline.inertial import with_inertial
 from scenarios.pipeline.stream import events as planned_events
 from scenarios.score.vessel_log import VesselWatch
 from scenarios.spec.scenario import Scenario
@@ -16,6 +17,8 @@ from sim.autopilot import Autopilot
 from sim.clearance import HullClearance
 from sim.compass import Compass, with_heading
 from sim.driven_trajectory import DrivenTrajectory
+from sim.imu import Imu
+from sim.magnetic_compass import MagneticCompass
 from sim.scene import Scene
 from sim.traffic import build_traffic
 from sim.trajectory import Trajectory
@@ -35,6 +38,8 @@ class VesselRun:
     t_start: float
     t_end: float
     loop: ClosedLoop | None = None
+    imu: Imu | None = None
+    compass: MagneticCompass | None = None
 
     @classmethod
     def build(cls, scenario: Scenario, world, planned: Trajectory, lidar, receiver, t_start: float, t_end: float) -> VesselRun:
@@ -61,7 +66,11 @@ class VesselRun:
         return cls(scenario, scene, driven, watch, lidar, receiver, t_start, t_end, loop)
 
     def events(self, feed) -> Iterator:
-        """The run's scans and fixes in time order; closed loop steers on `feed`'s estimator (or the truth)."""
+        """The run's scans and fixes in time order, with the IMU's and the compass's outputs between them when there are
+        such sensors; closed loop steers on `feed`'s estimator (or the truth)."""
+        return with_inertial(self._events(feed), self.trajectory, self.imu, self.compass, self.t_start)
+
+    def _events(self, feed) -> Iterator:
         if self.loop is None:
             return watched(
                 planned_events(self.world, self.trajectory, self.lidar, self.receiver, self.t_start, self.t_end), self.watch, self.lidar.revolution_s

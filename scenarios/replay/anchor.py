@@ -25,12 +25,17 @@ class HeadingLog:
     """Each estimator's heading standard deviation (deg) at each scan, read through `sd_of` when called after each scan."""
 
     estimator_ids: list[str]
-    sd_of: Callable[[str], float] | None = None  # the Feed's yaw_sd_deg, once the Feed exists
+    sd_of: Callable[[str], float] | None = None  # each estimator's, once the Feed exists
     sd: dict[str, list[float]] = field(default_factory=dict)
 
     def __call__(self, stamp: float, results: dict | None = None) -> None:
         for eid in self.estimator_ids:
             self.sd.setdefault(eid, []).append(self.sd_of(eid) if self.sd_of is not None else math.nan)
+
+
+def yaw_sd_deg(cov: np.ndarray | None) -> float:
+    """The heading standard deviation (deg) of a 6x6 [x, y, z, roll, pitch, yaw] covariance (NaN without one)."""
+    return math.degrees(math.sqrt(cov[5, 5])) if cov is not None and cov[5, 5] >= 0 else math.nan
 
 
 @dataclass(frozen=True)

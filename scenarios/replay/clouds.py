@@ -4,8 +4,10 @@
   NaN in an organised cloud) are left out.
 - intensity | i | reflectivity: kept in the driver's own scale (the velodyne driver's is the
   sensor's 0-255 calibrated reflectivity, as the simulator's); missing -> 0.
-- ring | laser_id | channel: the laser; missing -> the nearest HDL-32E beam by elevation (its laser
-  id, as the simulator numbers rings) when every point lies within the HDL-32E's vertical field of
+- ring: velodyne_pointcloud's ring, the elevation rank (0 the lowest beam; scenarios.export.dialect),
+  read back into the HDL-32E laser id the simulator numbers rings by (a ring of 32 or more, not an
+  HDL-32E's, is kept). laser_id | channel: the laser id as it is. Missing -> the nearest HDL-32E
+  beam by elevation (its laser id) when every point lies within the HDL-32E's vertical field of
   view, else 0.
 - time | t | timestamp | timestamps: per-point time; float seconds relative to the header stamp
   (velodyne), integer nanoseconds relative to it (ouster's t), or float absolute Unix seconds
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from scenarios.export import dialect
 from sim.lidar import HDL32E_ELEVATION_DEG
 from sim.scan import POINT_DTYPE, Scan
 
@@ -48,10 +51,18 @@ def scan(msg, stamp: float, header_unix_s: float) -> Scan:
     names = {key: next((name for name in options if name in fields.names), None) for key, options in NAMES.items()}
     if names["intensity"]:
         points["intensity"] = raw[names["intensity"]]
-    points["ring"] = raw[names["ring"]] if names["ring"] else rings_from_elevation(xyz)
+    points["ring"] = lasers(raw, names["ring"]) if names["ring"] else rings_from_elevation(xyz)
     if names["time"]:
         points["time"] = relative_time(raw[names["time"]], header_unix_s)
     return Scan(stamp=stamp, points=points)
+
+
+def lasers(raw: np.ndarray, name: str) -> np.ndarray:
+    """HDL-32E laser ids of the cloud's ring field `name` (a velodyne `ring` is an elevation rank: mapped back when all are < 32)."""
+    values = raw[name].astype(np.int64)
+    if name == "ring" and len(values) and values.min() >= 0 and values.max() < len(dialect.LASER_OF_RING):
+        return dialect.laser_of_ring(values)
+    return values.astype(np.uint16)
 
 
 def fields_dtype(msg) -> np.dtype:

@@ -1,21 +1,24 @@
 """Receiver reports read back into the GnssFix the estimators take (fusion.observation.screen reads stamp,
-quality, enu, hdop, vdop and the satellites' prn, elevation, C/N0 and use), with no truth.
+quality, enu, hdop, vdop and the satellites' prn, elevation, C/N0, use, system and signal), with no truth.
 
-- NMEA (nmea_msgs/Sentence, a pcap's GPRMC): one epoch's sentences are decoded by sim.nmea's
-  parser; GGA gives position, quality, satellites used, HDOP and altitude, GSA the used PRNs and
-  the DOPs, GSV each satellite's elevation, azimuth and C/N0, RMC speed, course and, without GGA,
-  position and quality (status V -> 0, mode E -> 6 dead reckoning, else 1). Sentences of other
-  types or with a bad checksum stay in the log and are not read. An epoch is the run of sentences
-  from one GGA/RMC time to the next.
+- NMEA (an NMEA log, nmea_msgs/Sentence, a pcap's GPRMC): sentences are read and cut into epochs
+  by sim.nmea (any talker; GGA, RMC, GNS, GLL, GSA, GSV, VTG, ZDA, GST; epochs by fix time value);
+  each epoch is one fix, a no-fix epoch too (quality 0, no position): position, height, quality,
+  satellites used, DOPs, speed and course as sim.nmea.epochs merges them, every satellite signal
+  of its GSVs with its system and signal, used when a GSA lists it. Lines that are not read
+  (bad or missing checksum, garbage, proprietary, other types) stay in the log and are counted.
 - NavSatFix: latitude, longitude, altitude; status NO_FIX -> 0, FIX -> 1, SBAS -> 2, GBAS -> 4;
-  HDOP = sqrt(var_east + var_north) / UERE and VDOP = sqrt(var_up) / UERE from a known covariance,
-  UERE the 4 m of riverbench's export (exact for its bags; other drivers' conventions give an
-  equivalent HDOP). No satellites, so the C/N0 monitor cannot judge, and no dead reckoning (6).
+  HDOP from a known covariance by nmea_navsat_driver's convention, sqrt((var_east + var_north) / 2)
+  / EPE of the status (scenarios.export.dialect.hdop_of_navsat: exact for that driver's and
+  riverbench's bags; other drivers' conventions give an equivalent HDOP); no VDOP (the convention
+  carries none). No satellites, so the C/N0 monitor cannot judge, and no dead reckoning (6).
 - Both (a bag with NMEA and one NavSatFix topic, as riverbench's export and nmea_navsat_driver
   record them): the NMEA epoch's fix, with the position of the NavSatFix stamped like one of its
   sentences in float64 (NMEA prints 5 decimals of minutes, ~1 cm) when it lies within REFINE_M,
-  and that NavSatFix's DOPs when its HDOP prints as the NMEA one (another covariance convention is
-  left alone). The satellites' C/N0 (1 dB-Hz) and elevation (1 deg) stay NMEA's integers.
+  and that NavSatFix's HDOP when it prints as the NMEA one (another covariance convention is left
+  alone). A gps_msgs/GPSFix stamped like the epoch (gpsd_client's, riverbench's export) gives its
+  float64 HDOP, VDOP and PDOP when its HDOP and VDOP print as NMEA's; else VDOP and PDOP stay GSA's.
+  The satellites' C/N0 (1 dB-Hz) and elevation (1 deg) stay NMEA's integers.
 - An epoch that reports no DOP at all (GPRMC alone, as a Velodyne's position packets carry it, or a
   NavSatFix of unknown covariance) gets HDOP NOMINAL_HDOP, an open-sky receiver's: the estimators
   weigh it as such (uere_m * 1.0 / sqrt(2) per axis), the hdop monitor always trusts it and the
@@ -27,108 +30,57 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable
 
 import numpy as np
 
-from scenarios.export.ros_messages import UERE_M
+from scenarios.export import dialect
 from scenarios.replay.recording import Geo
-from sim import nmea
 from sim.gnss_fix import GnssFix, SatelliteReport
+from sim.nmea import epochs
+from sim.nmea.read import Record, Skipped, read
 
 NOMINAL_HDOP = 1.0
 NAVSAT_QUALITY = {-1: 0, 0: 1, 1: 2, 2: 4}
 """NavSatStatus (NO_FIX, FIX, SBAS_FIX, GBAS_FIX) -> GGA quality."""
-TIMED = ("GGA", "RMC")
+HDOP_KINDS = frozenset({"GGA", "GNS", "GSA"})
+"""Sentences with an HDOP field: an epoch with one of them has the HDOP they give (NaN when they leave it empty)."""
 REFINE_M = 0.1
 
 
-class Epochs:
-    """Split a stream of NMEA sentences into receiver epochs: add() returns the epoch the sentence closed, if any."""
-
-    def __init__(self) -> None:
-        self._stamps: list[int] = []
-        self._lines: list[str] = []
-        self._time = ""
-
-    @property
-    def open_ns(self) -> int | None:
-        """Stamp (ns) of the epoch being collected (None when none is open)."""
-        return self._stamps[0] if self._stamps else None
-
-    def add(self, ns: int, line: str) -> tuple[list[int], list[str]] | None:
-        """Take one sentence stamped `ns`; a GGA or RMC of a new time closes the open epoch and returns it (stamps, sentences)."""
-        line = line.strip()
-        time = utc_field(line)
-        closed = self.close() if time and self._time and time != self._time else None
-        self._time = time or self._time
-        self._stamps.append(ns)
-        self._lines.append(line)
-        return closed
-
-    def close(self) -> tuple[list[int], list[str]] | None:
-        """The open epoch (and none is open after), or None."""
-        if not self._stamps:
-            return None
-        epoch = (self._stamps, self._lines)
-        self._stamps, self._lines, self._time = [], [], ""
-        return epoch
-
-
-def utc_field(line: str) -> str:
-    """The hhmmss.ss field of a GGA or RMC sentence ('' for any other line)."""
-    fields = line.split(",")
-    return fields[1] if len(fields) > 1 and fields[0][-3:] in TIMED and fields[0].startswith("$") else ""
-
-
-def decoded(lines: Iterable[str]) -> list[dict]:
-    """The sentences sim.nmea can decode (GGA, RMC, GSA, GSV with a good checksum), in order; the rest skipped."""
-    out = []
-    for line in lines:
-        try:
-            out.append(nmea.parse(line))
-        except ValueError:
-            continue
-    return out
-
-
 def from_nmea(stamp: float, lines: list[str], geo: Geo) -> GnssFix | None:
-    """The epoch's fix (None when it has neither GGA nor RMC)."""
-    messages = decoded(lines)
-    kinds: dict[str, list[dict]] = {}
-    for m in messages:
-        kinds.setdefault(m["type"], []).append(m)
-    gga, rmc = (kinds.get(k, [None])[0] for k in TIMED)
-    if gga is None and rmc is None:
+    """The fix of one epoch's sentences (None when none of them gives a fix time or position: GGA, RMC, GNS, GLL)."""
+    return from_epoch(stamp, epochs.assemble([epochs.Line(k, line, read_or_none(line)) for k, line in enumerate(lines)]), geo)
+
+
+def read_or_none(line: str) -> Record | None:
+    """The sentence's record, None when it is not read."""
+    try:
+        return read(line)
+    except Skipped:
         return None
-    gsa = kinds.get("GSA", [])
-    used = {prn for m in gsa for prn in m["prns"]}
-    sats = tuple(
-        SatelliteReport(prn, float(az), float(el), float(snr or 0.0), prn in used) for m in kinds.get("GSV", []) for prn, el, az, snr in m["sats"]
-    )
-    if gga is not None:
-        quality, lat, lon, alt, num_sats = gga["quality"], gga["lat"], gga["lon"], gga["alt"], gga["num_sats"]
-    else:
-        quality = 0 if not rmc["valid"] else {"N": 0, "E": 6}.get(rmc["mode"], 1)
-        lat, lon, alt, num_sats = rmc["lat"], rmc["lon"], math.nan, len(used)
-    if math.isfinite(lat) and not math.isfinite(alt):
-        alt = geo.origin[2]
-    dops = [m["hdop"] for m in (gga, *gsa) if m is not None]
-    hdop = next((h for h in dops if math.isfinite(h)), math.nan) if dops else NOMINAL_HDOP
+
+
+def from_epoch(stamp: float, epoch: epochs.Epoch, geo: Geo) -> GnssFix | None:
+    """The fix of an NMEA epoch (None when it has no GGA, RMC, GNS or GLL)."""
+    if not epoch.kinds & set(epochs.POSITIONS):
+        return None
+    sats = tuple(SatelliteReport(s.svid, s.az_deg, s.el_deg, 0.0 if math.isnan(s.snr) else s.snr, s.used, s.system, s.signal) for s in epoch.sats)
+    alt = epoch.alt if math.isfinite(epoch.alt) or not math.isfinite(epoch.lat) else geo.origin[2]
+    hdop = epoch.hdop if epoch.kinds & HDOP_KINDS else NOMINAL_HDOP
     return fix(
         stamp,
         geo,
-        quality,
-        lat,
-        lon,
+        epoch.quality,
+        epoch.lat,
+        epoch.lon,
         alt,
-        num_sats,
+        epoch.num_sats,
         hdop,
-        vdop=gsa[0]["vdop"] if gsa else math.nan,
-        pdop=gsa[0]["pdop"] if gsa else math.nan,
+        vdop=epoch.vdop,
+        pdop=epoch.pdop,
         sats=sats,
-        speed_mps=rmc["speed_mps"] if rmc else math.nan,
-        course_deg=rmc["course_deg"] if rmc else math.nan,
+        speed_mps=epoch.speed_mps,
+        course_deg=epoch.course_deg,
     )
 
 
@@ -141,23 +93,26 @@ def from_navsatfix(stamp: float, msg, geo: Geo) -> GnssFix:
 
 
 def navsat_dops(msg) -> tuple[float, float]:
-    """(HDOP, VDOP) from a NavSatFix's covariance; (NOMINAL_HDOP, NaN) when it is unknown."""
-    cov = np.asarray(msg.position_covariance, dtype=float).reshape(3, 3)
-    if int(msg.position_covariance_type) <= 0 or cov[0, 0] + cov[1, 1] <= 0:
-        return NOMINAL_HDOP, math.nan
-    return math.sqrt(cov[0, 0] + cov[1, 1]) / UERE_M, math.sqrt(cov[2, 2]) / UERE_M if cov[2, 2] > 0 else math.nan
+    """(HDOP, VDOP) of a NavSatFix: HDOP from its covariance (module docstring; NOMINAL_HDOP when unknown), VDOP NaN."""
+    hdop = dialect.hdop_of_navsat(msg.status.status, msg.position_covariance_type, msg.position_covariance)
+    return NOMINAL_HDOP if hdop is None else hdop, math.nan
 
 
-def refined(fix: GnssFix, msg, geo: Geo) -> GnssFix:
-    """The NMEA fix with the float64 position and the DOPs of a NavSatFix of its epoch, when they agree (module docstring)."""
-    lat, lon, alt = float(msg.latitude), float(msg.longitude), float(msg.altitude)
-    enu = geo.enu(lat, lon, alt)
-    if not fix.quality or not np.isfinite(enu).all() or np.linalg.norm(enu[:2] - fix.enu[:2]) > REFINE_M:
+def refined(fix: GnssFix, navsat, extended, geo: Geo) -> GnssFix:
+    """The NMEA fix with the float64 position and HDOP of a NavSatFix of its epoch and the float64 DOPs of a GPSFix
+    of its epoch (either may be None), each when it agrees with NMEA (module docstring)."""
+    if not fix.quality:
         return fix
-    hdop, vdop = navsat_dops(msg)
-    if f"{hdop:.2f}" != f"{fix.hdop:.2f}":
-        hdop, vdop = fix.hdop, fix.vdop
-    return dataclasses.replace(fix, lat=lat, lon=lon, alt=alt, enu=enu, hdop=hdop, vdop=vdop)
+    out = fix
+    if navsat is not None:
+        lat, lon, alt = float(navsat.latitude), float(navsat.longitude), float(navsat.altitude)
+        enu = geo.enu(lat, lon, alt)
+        if np.isfinite(enu).all() and np.linalg.norm(enu[:2] - fix.enu[:2]) <= REFINE_M:
+            hdop = navsat_dops(navsat)[0]
+            out = dataclasses.replace(out, lat=lat, lon=lon, alt=alt, enu=enu, hdop=hdop if f"{hdop:.2f}" == f"{fix.hdop:.2f}" else fix.hdop)
+    if extended is not None and all(f"{float(getattr(extended, k)):.2f}" == f"{getattr(fix, k):.2f}" for k in ("hdop", "vdop")):
+        out = dataclasses.replace(out, hdop=float(extended.hdop), vdop=float(extended.vdop), pdop=float(extended.pdop))
+    return out
 
 
 def fix(

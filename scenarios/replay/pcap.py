@@ -28,10 +28,11 @@ import numpy as np
 import velodyne_decoder as vd
 from velodyne_decoder.velodyne_decoder_pylib import TimePair
 
+from riverbench.unixtime import unix_ns
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import capture, fixes
 from scenarios.replay.clocks import Arrival, Clocks, ClockSurvey, SensorClock
-from scenarios.replay.recording import Event, Geo, Place, RecordedFix, Recording, TimeOrder, unix_ns
+from scenarios.replay.recording import Event, Geo, Place, RecordedFix, Recording, TimeOrder
 from scenarios.replay.revolutions import Cutter, Packet, Revolution
 from scenarios.replay.velodyne import DATA_BYTES, DUAL, POSITION_BYTES, Evidence, Identified, evidence, identify
 from sim import nmea

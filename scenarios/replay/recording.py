@@ -17,21 +17,24 @@ import itertools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from datetime import UTC, datetime, timedelta
+from datetime import datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 import pymap3d
 
+from riverbench.unixtime import UNIX_EPOCH, unix_ns
 from scenarios.pipeline.feed import BadScan
+from scenarios.pipeline.inertial import ImuEvent
 from scenarios.pipeline.stream import ScanEvent
+from scenarios.replay.imu import ImuReading
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import GnssFix
+from sim.nmea.epochs import Tally
 
 DAY_NS = 86_400 * 10**9
 ORIGIN_RADIUS_M = 20_000.0
 REORDER_LAG_S = 1.0
-UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,7 @@ class RecordedFix:
     sentences: tuple[str, ...] = ()
 
 
-Event = ScanEvent | RecordedFix | BadScan
+Event = ScanEvent | RecordedFix | BadScan | ImuEvent
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,9 @@ class Place:
     origin: tuple[float, float, float]
     epoch_utc: datetime
     start_azimuth_deg: float = 180.0
+    imu_noise: tuple[float, float] | None = None
+    """The scenario's IMU white-noise densities (gyro rad/s/sqrt(Hz), accel m/s^2/sqrt(Hz)) when an estimator is fed
+    the IMU (then a bag's sensor_msgs/Imu is read), else None."""
 
 
 @dataclass(frozen=True)
@@ -89,19 +95,42 @@ class Geo:
         return UNIX_EPOCH + timedelta(microseconds=self.zero_ns // 1000 + round(stamp * 1e6))
 
 
-def unix_ns(when: datetime) -> int:
-    """Integer nanoseconds since the Unix epoch of an aware datetime."""
-    return (when - UNIX_EPOCH) // timedelta(microseconds=1) * 1000
-
-
 def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:
     """Straight-line distance between two WGS-84 positions."""
     return float(np.linalg.norm(np.subtract(pymap3d.geodetic2ecef(*a), pymap3d.geodetic2ecef(*b))))
 
 
+@dataclass
+class LogStats:
+    """What reading NMEA sentences counted: lines read and skipped (sim.nmea.epochs.Tally), epochs, those with a fix, and
+    those left out as out of time order."""
+
+    tally: Tally = field(default_factory=Tally)
+    epochs: int = 0
+    with_fix: int = 0
+    out_of_order: int = 0
+
+    def summary(self) -> str:
+        """One line for the user."""
+        late = f"; {self.out_of_order} epochs out of time order left out" if self.out_of_order else ""
+        return f"{self.tally.summary()}; {self.epochs} epochs, {self.with_fix} with a fix{late}"
+
+    def tree(self) -> dict:
+        """The counts as metrics.json holds them."""
+        return {
+            "read": dict(sorted(self.tally.read.items())),
+            "skipped": dict(self.tally.skipped.most_common()),
+            "epochs": self.epochs,
+            "with_fix": self.with_fix,
+            "out_of_order": self.out_of_order,
+        }
+
+
 @dataclass(frozen=True)
 class Recording:
-    """An opened recording: what was picked from it, its time span in replay seconds, and its events (read lazily, once)."""
+    """An opened recording: what was picked from it (lidar_source '' when it has no LiDAR: a GNSS-only replay), its time
+    span in replay seconds, its events (read lazily, once), when its GPS is NMEA, what reading it counted (filled as the
+    events are read), and its IMU topic and mount ('' when no IMU is read)."""
 
     path: Path
     format: str
@@ -111,26 +140,35 @@ class Recording:
     t_start: float
     t_end: float
     events: Callable[[], Iterator[Event]] = field(repr=False)
+    nmea: LogStats | None = field(default=None, repr=False)
+    imu_source: str = ""
     facts: dict = field(default_factory=dict)
     """What the reader found that a report should state (a capture's sensor, clocks, revolutions, fixes in the file)."""
 
+    @property
+    def gnss_only(self) -> bool:
+        """No LiDAR: the estimators run on the fixes alone."""
+        return not self.lidar_source
+
 
 class TimeOrder:
-    """Events released in stamp order, a scan before a fix or failure at the same stamp, once the recording has moved past them."""
+    """Events released in stamp order, once the recording has moved past them; at the same stamp an IMU sample, then a
+    scan, then a fix or failure (a run's IMU batch up to a scan comes before it)."""
 
     def __init__(self) -> None:
-        self._heap: list[tuple[float, int, int, Event]] = []
+        self._heap: list[tuple[float, int, int, Event | ImuReading]] = []
         self._seq = itertools.count()
 
-    def add(self, event: Event) -> None:
+    def add(self, event: Event | ImuReading) -> None:
         """Hold an event until its turn."""
-        heapq.heappush(self._heap, (event.stamp, 0 if isinstance(event, ScanEvent) else 1, next(self._seq), event))
+        rank = 0 if isinstance(event, ImuReading) else 1 if isinstance(event, ScanEvent) else 2
+        heapq.heappush(self._heap, (event.stamp, rank, next(self._seq), event))
 
-    def release(self, before: float) -> Iterator[Event]:
+    def release(self, before: float) -> Iterator[Event | ImuReading]:
         """The held events stamped before `before`, in order."""
         while self._heap and self._heap[0][0] < before:
             yield heapq.heappop(self._heap)[3]
 
-    def rest(self) -> Iterator[Event]:
+    def rest(self) -> Iterator[Event | ImuReading]:
         """Every held event, in order (the recording ended)."""
         return self.release(math.inf)

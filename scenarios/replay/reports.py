@@ -13,9 +13,10 @@ from sim.gnss_fix import GnssFix, SatelliteReport
 
 def applied(fix: GnssFix, msg, geo: Geo) -> GnssFix:
     """The fix (its stamp and position) with the report's quality, DOPs, speed, course and satellites."""
+    columns = (msg.prn, msg.azimuth_deg, msg.elevation_deg, msg.cn0_dbhz, msg.used, msg.system, msg.signal)
     sats = tuple(
-        SatelliteReport(int(prn), float(az), float(el), float(cn0), bool(used))
-        for prn, az, el, cn0, used in zip(msg.prn, msg.azimuth_deg, msg.elevation_deg, msg.cn0_dbhz, msg.used, strict=True)
+        SatelliteReport(int(prn), float(az), float(el), float(cn0), bool(used), str(system), str(signal))
+        for prn, az, el, cn0, used, system, signal in zip(*columns, strict=True)
     )
     quality = int(msg.quality) if all(math.isfinite(v) for v in (fix.lat, fix.lon, fix.alt)) else 0
     return fixes.fix(

@@ -83,6 +83,7 @@ class Column:
     better: str | None = "low"  # "low", "high", or None (not ranked)
     text: bool = False  # words, not numbers: left-aligned
     detail: Callable[[dict], str] | None = None  # printed after the value (e.g. its spread over seeds), not ranked
+    ranked_if: Callable[[dict], bool] | None = None  # a row whose value is shown but not ranked when this says False
 
 
 def num(value, fmt: str = ".2f", unit: str = "") -> str:
@@ -121,7 +122,11 @@ def ranked_table(first: str, nodes: dict[str, dict], columns: list[Column], labe
     rows = [
         [Cell(labels[k], css="fail" if n.get("failed") else "")]
         + [
-            Cell(texts[c.title][k] + (c.detail(n) if c.detail else ""), bold=texts[c.title][k] == best[c.title], css="text" if c.text else "")
+            Cell(
+                texts[c.title][k] + (c.detail(n) if c.detail else ""),
+                bold=texts[c.title][k] == best[c.title] and _ranked(c, n),
+                css="text" if c.text else "",
+            )
             for c in columns
         ]
         for k, n in nodes.items()
@@ -129,9 +134,14 @@ def ranked_table(first: str, nodes: dict[str, dict], columns: list[Column], labe
     return Table([first, *(c.title for c in columns)], rows, note)
 
 
+def _ranked(column: Column, node: dict) -> bool:
+    """Whether the node's value competes for best in the column."""
+    return column.ranked_if is None or column.ranked_if(node)
+
+
 def _best_text(column: Column, nodes: dict[str, dict]) -> str | None:
-    """The printed best value of a ranked column, or None when unranked or when no value stands out."""
-    values = [v for v in (column.value(n) for n in nodes.values()) if v is not None and v == v]
+    """The printed best value of a ranked column among the rows it ranks, or None when unranked or when no value stands out."""
+    values = [v for v in (column.value(n) for n in nodes.values() if _ranked(column, n)) if v is not None and v == v]
     if column.better is None or len({column.fmt(v) for v in values}) < 2:
         return None
     return column.fmt(min(values) if column.better == "low" else max(values))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +20,7 @@ from matplotlib.patches import Patch, Rectangle
 from riverbench.angles import wrap_angle
 from riverbench.atomic import atomic_path
 from scenarios.pipeline import files
+from scenarios.report import world_map
 
 WINDOW_COLOURS = {"blackout": "#d62728", "nlos": "#ff7f0e", "reacquisition": "#e6c229", "injected": "#9467bd"}
 """Shading and highlight colour of each GPS-degradation window kind."""
@@ -35,12 +36,14 @@ FILE_MODE = 0o644
 WIDTH_IN = 11.0
 DPI = 100
 PLOTS = {
-    "map": "The stretch: true track, GPS fixes, each estimate and matcher odometry; blackout, NLOS and injected-fault stretches highlighted.",
+    "map": "The stretch over the world's parts projected onto the water plane (banks, walls and quays, bridges, piers, buildings; trees left "
+    "out): true track, GPS fixes, each estimate and matcher odometry; blackout, NLOS and injected-fault stretches highlighted.",
     "error": "Horizontal error against time: each estimator (lines) and each GPS fix (dots); GPS-degradation windows shaded.",
     "hdop_error": "HDOP against the true horizontal error of each measured fix, fixes that used a reflected (NLOS) signal in orange: "
     "an HDOP threshold only helps where the faulty fixes (above the dotted line) sit at high HDOP.",
     "yaw": "Yaw error (estimate minus truth, wrapped to ±180°) against time; windows shaded.",
-    "matchers": "Scan matchers: points per scan and the outcome of each registration.",
+    "matchers": "Scan matchers: points per scan (top), the wall-clock time of each registration, a running median over about a second "
+    "(middle), and each registration's outcome (bottom, one row per matcher); GPS-degradation windows shaded.",
 }
 """Each figure's file stem and caption, in report order."""
 
@@ -76,10 +79,11 @@ class RunSeries:
     scans: dict[str, np.ndarray]
     windows: list[Window]
     hdop_limits: dict[str, float]
+    world: list[world_map.Footprint] = field(default_factory=list)
 
 
-def load(run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_limits: dict[str, float]) -> RunSeries:
-    """Read the trajectories, gps.csv, scans.csv and windows.csv of a run directory."""
+def load(run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_limits: dict[str, float], world=None) -> RunSeries:
+    """Read the trajectories, gps.csv, scans.csv and windows.csv of a run directory; with its `world`, the parts under the map."""
     truth = read_tum(run_dir / "groundtruth.tum")
     windows = read_csv(run_dir / "windows.csv")
     return RunSeries(
@@ -91,12 +95,13 @@ def load(run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_l
         scans=read_csv(run_dir / "scans.csv"),
         windows=[Window(k, float(s), float(e)) for k, s, e in zip(windows.get("kind", []), windows.get("start", []), windows.get("end", []))],
         hdop_limits=hdop_limits,
+        world=world_map.footprints(world, overview_extent(truth)) if world is not None and len(truth.t) else [],
     )
 
 
 def read_tum(path: Path) -> Track:
-    """A TUM file as a planar Track (empty when the file is missing or has no rows)."""
-    rows = files.read_tum(path) if path.exists() else np.zeros((0, 8))
+    """A TUM file as a planar Track on the scenario's clock (empty when the file is missing or has no rows)."""
+    rows = files.read_tum(path, scenario_time=True) if path.exists() else np.zeros((0, 8))
     qx, qy, qz, qw = rows[:, 4:8].T
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy**2 + qz**2))
     return Track(rows[:, 0], rows[:, 1], rows[:, 2], yaw)
@@ -184,7 +189,7 @@ def map_figure(series: RunSeries) -> Figure | None:
     truth = series.truth
     if not len(truth.t):
         return None
-    overview = _fit_aspect(_extent(truth.x, truth.y, pad=max(20.0, 0.05 * max(np.ptp(truth.x), np.ptp(truth.y)))), 0.25, 1.2)
+    overview = overview_extent(truth)
     aspect = _aspect(overview)
     closeup = _closeup(series)
     if closeup is None:
@@ -198,7 +203,7 @@ def map_figure(series: RunSeries) -> Figure | None:
         figure = Figure(figsize=(WIDTH_IN, 0.45 * WIDTH_IN * aspect + 1.6), layout="constrained")
         axes = list(figure.subplots(1, 2))
         closeup = replace(closeup, extent=_fit_aspect(closeup.extent, aspect, aspect))
-    _draw_map(axes[0], series, overview)
+    world = _draw_map(axes[0], series, overview)
     axes[0].set_title("The stretch", fontsize=10)
     if closeup:
         x0, x1, y0, y1 = closeup.extent
@@ -211,11 +216,17 @@ def map_figure(series: RunSeries) -> Figure | None:
             fontsize=10,
         )
     handles, labels = axes[-1].get_legend_handles_labels()
+    handles, labels = handles + world, labels + [str(p.get_label()) for p in world]
     legend = figure.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)), fontsize=8)
     for handle in legend.legend_handles:
         if isinstance(handle, PathCollection):
             handle.set_sizes([25])
     return figure
+
+
+def overview_extent(truth: Track) -> tuple[float, float, float, float]:
+    """The map's overview frame: the true track, padded, its height/width ratio in [0.25, 1.2]."""
+    return _fit_aspect(_extent(truth.x, truth.y, pad=max(20.0, 0.05 * max(np.ptp(truth.x), np.ptp(truth.y)))), 0.25, 1.2)
 
 
 def _extent(x: np.ndarray, y: np.ndarray, pad: float) -> tuple[float, float, float, float]:
@@ -270,9 +281,11 @@ def _mark_moment(ax, series: RunSeries, stamp: float) -> None:
     ax.plot(truth.x[i], truth.y[i], marker="*", ms=12, color="black", ls="none", zorder=7)
 
 
-def _draw_map(ax, series: RunSeries, extent: tuple[float, float, float, float]) -> None:
-    """Truth, GPS fixes by quality, window highlights, estimates and odometry on one map axis, framed to `extent`."""
+def _draw_map(ax, series: RunSeries, extent: tuple[float, float, float, float]) -> list[Patch]:
+    """The world's parts, truth, GPS fixes by quality, window highlights, estimates and odometry on one map axis, framed
+    to `extent`; returns the legend patches of the world's parts."""
     truth, palette = series.truth, colours(series)
+    world = world_map.draw(ax, series.world)
     ax.plot(truth.x, truth.y, color="black", lw=1.6, label="truth", zorder=3)
     for kind in MAP_WINDOWS:
         _highlight_windows(ax, series, kind)
@@ -294,6 +307,7 @@ def _draw_map(ax, series: RunSeries, extent: tuple[float, float, float, float]) 
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.grid(alpha=0.3)
+    return world
 
 
 def _highlight_windows(ax, series: RunSeries, kind: str) -> None:
@@ -381,7 +395,7 @@ def hdop_figure(series: RunSeries) -> Figure | None:
         "HDOP against true horizontal error of measured fixes" + (f" (correlation r = {round(r, 2) + 0.0:.2f})" if math.isfinite(r) else ""),
         fontsize=10,
     )
-    ax.set_xlabel("HDOP")
+    ax.set_xlabel("HDOP (dimensionless)")
     ax.set_ylabel("true horizontal error (m)")
     ax.set_ylim(0, clip_limit([gps["err_h"][measured]], floor=FAULT_M * 1.2))
     ax.grid(alpha=0.3)
@@ -421,25 +435,61 @@ def yaw_figure(series: RunSeries) -> Figure | None:
     return figure
 
 
+SMOOTH_SCANS = 11
+"""Registration times are drawn as their running median over this many scans (about a second): wall clock is noisy."""
+LINE_STYLES = ("-", "--", ":", "-.")
+"""Dash patterns cycled over the matchers, so overlapping lines stay apart by more than their colour."""
+
+
 def matchers_figure(series: RunSeries) -> Figure | None:
-    """Per matcher: points per scan (top) and each registration's outcome over time (bottom strip)."""
+    """Small multiples over time: points per scan (one line when every matcher saw the same scans), each matcher's
+    registration time, and each registration's outcome (one strip row per matcher)."""
     mids = [m for m in series.matchers if f"{m}.ok" in series.scans]
     if not mids or not len(series.scans["t"]):
         return None
-    figure, (top, strip) = _figure(5.2, rows=2, height_ratios=[3, 0.4 + 0.35 * len(mids)])
-    patches = shade_windows(top, series)
+    figure, (points_ax, time_ax, strip) = _figure(6.6, rows=3, height_ratios=[2.2, 2.2, 0.4 + 0.35 * len(mids)])
+    figure.suptitle("Scan matchers: points per scan, registration time and outcome", fontsize=10)
     palette = colours(series)
     t = series.scans["t"] - series.t0
+    counts = {m: series.scans[f"{m}.points"] for m in mids}
+    same = all(np.array_equal(counts[m], counts[mids[0]], equal_nan=True) for m in mids)
     handles = []
-    for m in mids:
-        handles += top.plot(t, series.scans[f"{m}.points"], color=palette[m], lw=1.0, label=f"{m}: points per scan")
-    top.set_ylabel("points per scan")
-    top.set_ylim(bottom=0)
-    top.grid(alpha=0.3)
-    top.legend(handles=[*handles, *patches], loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
-    top.set_title("Scan matchers", fontsize=10)
+    if same:
+        label = "every matcher (same scans)" if len(mids) > 1 else mids[0]
+        handles += points_ax.plot(t, counts[mids[0]], color="#4d4d4d" if len(mids) > 1 else palette[mids[0]], lw=1.0, label=label)
+    else:
+        for i, m in enumerate(mids):
+            handles += points_ax.plot(t, counts[m], color=palette[m], lw=1.0, ls=LINE_STYLES[i % len(LINE_STYLES)], label=m)
+    patches = shade_windows(points_ax, series)
+    points_ax.set_ylabel("points per scan (count)")
+    points_ax.set_ylim(bottom=0)
+    points_ax.grid(alpha=0.3)
+    points_ax.legend(handles=[*handles, *patches], loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
+    shade_windows(time_ax, series)
+    for i, m in enumerate(mids):
+        ms = np.where(outcome_codes(series.scans, m) >= 0, series.scans[f"{m}.ms"], np.nan)
+        ms[series.scans[f"{m}.gated"] == 1] = np.nan  # dropped before registration: no time
+        time_ax.plot(t, rolling_median(ms, SMOOTH_SCANS), color=palette[m], lw=1.2, ls=LINE_STYLES[i % len(LINE_STYLES)], label=m)
+    time_ax.set_ylabel(f"registration time (ms,\nmedian of {SMOOTH_SCANS} scans)")
+    time_ax.set_ylim(bottom=0)
+    time_ax.grid(alpha=0.3)
+    time_ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
     _outcome_strip(strip, series, mids, t)
     return figure
+
+
+def rolling_median(values: np.ndarray, width: int) -> np.ndarray:
+    """The median of the finite values in a centred window of `width` samples (NaN where the window has none)."""
+    values = np.asarray(values, dtype=float)
+    if len(values) < width:
+        return values
+    half = width // 2
+    padded = np.pad(values, half, constant_values=np.nan)
+    windows = np.lib.stride_tricks.sliding_window_view(padded, width)
+    out = np.full(len(values), np.nan)
+    has = np.isfinite(windows).any(axis=1)
+    out[has] = np.nanmedian(windows[has], axis=1)
+    return out
 
 
 OUTCOMES = (("matched", "#2ca02c"), ("degenerate", "#e6c229"), ("gated", "#7f7f7f"), ("failed", "#d62728"))

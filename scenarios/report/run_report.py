@@ -15,8 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from riverbench.atomic import atomic_path
-from scenarios.report import plots, vessel_plot
+from scenarios.report import plots, vessel_plot, world_map
 from scenarios.report.document import NULL, Cell, Column, Heading, Image, Table, Text, get, metres, num, ranked_table, share, to_html, to_markdown
+from scenarios.score import units
 
 
 @dataclass(frozen=True)
@@ -35,7 +36,7 @@ def write(run_dir: Path, scenario=None) -> None:
     run_dir = Path(run_dir)
     metrics = json.loads((run_dir / "metrics.json").read_text())
     info = scenario_info(run_dir, scenario)
-    series = plots.load(run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info))
+    series = plots.load(run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info), world_map.load(info))
     images = plots.write_all(series, run_dir / "plots")
     vessel_node = metrics.get("vessel", {})
     images |= vessel_plot.write(run_dir, float(vessel_node.get("clearance_threshold_m") or 0.0), vessel_node)
@@ -142,7 +143,8 @@ def failures(ctx: Context) -> list:
         ]
         for f in ctx.metrics.get("run", {}).get("failures", [])
     ]
-    return [Heading(2, "Failures"), Table(["component", "id", "at t (s)", "reason"], rows)] if rows else []
+    note = "t: scenario time, seconds since the trajectory's start."
+    return [Heading(2, "Failures"), Table(["component", "id", "at t (s)", "reason"], rows, note)] if rows else []
 
 
 def expectations(ctx: Context) -> list:
@@ -154,12 +156,20 @@ def expectations(ctx: Context) -> list:
         [
             Cell(o["expect"], css="text"),
             Cell(num(o.get("value"), ".4g")),
+            Cell(unit_of(o["expect"].split()[0]), css="text"),
             Cell("PASS" if o.get("pass") else "FAIL", css="pass" if o.get("pass") else "fail"),
             Cell(o.get("reason") or "", css="text"),
         ]
         for o in outcomes
     ]
-    return [Heading(2, "Expectations"), Table(["expectation", "value", "result", "reason"], rows)]
+    note = "Value: the metric at that dotted path of metrics.json, in the unit its `units` block gives."
+    return [Heading(2, "Expectations"), Table(["expectation", "value", "unit", "result", "reason"], rows, note)]
+
+
+def unit_of(path: str) -> str:
+    """The unit of a metric's dotted path (scenarios.score.units), '–' when it has none."""
+    quantity = units.quantity_of(path)
+    return NULL if quantity is None else quantity.unit
 
 
 def vessel(ctx: Context) -> list:
@@ -194,34 +204,60 @@ def vessel(ctx: Context) -> list:
     ]
     note = (
         f"{steering}; it {ended}. Clearance: the distance from the hull to the nearest structure (overhead decks excluded); "
-        f"time within {num(node.get('clearance_threshold_m'), '.1f')} m of one; cross-track: the true offset from the route, metres."
+        f"time within {num(node.get('clearance_threshold_m'), '.1f')} m of one; cross-track: the true offset from the route."
     )
     return [
         Heading(2, "Vessel"),
-        Table(["outcome", "min clearance (nearest)", "s below threshold", "cross-track mean", "p95", "max", "distance (m)"], rows, note),
+        Table(
+            ["outcome", "min clearance (m) (nearest part)", "time below threshold (s)", "cross-track mean (m)", "p95 (m)", "max (m)", "distance (m)"],
+            rows,
+            note,
+        ),
     ]
+
+
+def degrees(value) -> str:
+    """An angle in degrees with two decimals."""
+    return num(value, ".2f")
+
+
+def _recall_defined(node: dict) -> bool:
+    """Whether the monitor caught any faulty fix: a false-alarm rate beside no recall (no faulty fix, or none flagged)
+    is no merit, so it is shown but never ranked best."""
+    recall = get("monitor.added_5m.recall")(node)
+    return recall is not None and recall == recall and recall > 0
 
 
 ACCURACY_COLUMNS = [
     Column("available", get("available"), share, "high"),
-    Column("APE rmse", get("ape.rmse"), metres),
-    Column("APE median", get("ape.median"), metres),
-    Column("APE p95", get("ape.p95"), metres),
-    Column("APE max", get("ape.max"), metres),
-    Column("RPE 10 m", get("rpe_10m.mean"), metres),
-    Column("RPE 100 m", get("rpe_100m.mean"), metres),
-    Column("yaw p95 (°)", get("yaw.p95"), metres),
+    Column("APE rmse (m)", get("ape.rmse"), metres),
+    Column("APE median (m)", get("ape.median"), metres),
+    Column("APE p95 (m)", get("ape.p95"), metres),
+    Column("APE max (m)", get("ape.max"), metres),
+    Column("RPE 10 m (m)", get("rpe_10m.mean"), metres),
+    Column("RPE 100 m (m)", get("rpe_100m.mean"), metres),
+    Column("yaw p95 (°)", get("yaw.p95"), degrees),
 ]
-DEGRADATION_COLUMNS = [
-    Column("blackout max", get("windows.blackout.max_error"), metres),
-    Column("blackout exit", get("windows.blackout.exit_error"), metres),
-    Column("reacquisition max", get("windows.reacquisition.max_error"), metres),
-    Column("NLOS max", get("windows.nlos.max_error"), metres),
-    Column("injected max", get("windows.injected.max_error"), metres),
+WINDOW_COLUMNS = [
+    Column("blackout max (m)", get("windows.blackout.max_error"), metres),
+    Column("blackout exit (m)", get("windows.blackout.exit_error"), metres),
+    Column("reacquisition max (m)", get("windows.reacquisition.max_error"), metres),
+    Column("NLOS max (m)", get("windows.nlos.max_error"), metres),
+    Column("injected max (m)", get("windows.injected.max_error"), metres),
+]
+MONITOR_COLUMNS = [
     Column("monitor", get("monitor_kind"), lambda v: NULL if v is None else str(v), None, text=True),
+    Column("faulty fixes", get("monitor.added_5m.faulty"), lambda v: num(v, ".0f"), None),
     Column("recall", get("monitor.added_5m.recall"), share, "high"),
-    Column("false alarms", get("monitor.added_5m.false_alarm_rate"), share),
+    Column("false alarms", get("monitor.added_5m.false_alarm_rate"), share, ranked_if=_recall_defined),
 ]
+DEGRADATION_COLUMNS = [*WINDOW_COLUMNS, *MONITOR_COLUMNS]
+WINDOW_NOTE = "Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit)."
+MONITOR_NOTE = (
+    "Monitor: its verdicts on the measured fixes; faulty fixes: how many had more than 5 m added by the environment; "
+    "recall: the share of those it flagged (– when there were none); false alarms: the share of the other measured "
+    "fixes it flagged, ranked only beside a recall above 0 (flagging nothing is no merit)."
+)
 
 
 def estimators(ctx: Context) -> list:
@@ -236,24 +272,24 @@ def estimators(ctx: Context) -> list:
         nodes,
         ACCURACY_COLUMNS,
         labels,
-        note="Horizontal errors in metres over the scans with an estimate (available); RPE: mean error per 10 m "
-        "and per 100 m of true travel. Bold: best in its column.",
+        note="Available: share of the run's scans with an estimate (an estimator that starts late or stops has less); "
+        "errors: horizontal, in metres, over those scans; RPE: mean error per 10 m and per 100 m of true travel; "
+        "yaw: heading error in degrees. Bold: best in its column.",
     )
     # no monitor: its scores mean nothing; a window kind the run never met: its column would be all '–'
     nodes = {
         eid: {**(n if monitors.get(eid, "none") != "none" else _without_monitor(n)), "monitor_kind": monitors.get(eid)} for eid, n in nodes.items()
     }
-    columns = [c for c in DEGRADATION_COLUMNS if any(c.value(n) is not None for n in nodes.values())]
-    degradation = ranked_table(
-        "estimator",
-        nodes,
-        columns,
-        labels,
-        note="Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit). "
-        "Monitor: recall and false-alarm rate on measured fixes whose environment-added error exceeds 5 m. "
-        "Bold: best in its column.",
-    )
-    return [Heading(2, "Estimators"), accuracy, Heading(3, "Through GPS degradation"), degradation]
+    columns = [c for c in WINDOW_COLUMNS if any(c.value(n) is not None for n in nodes.values())]
+    notes = [WINDOW_NOTE] if columns else []
+    if any(monitors.get(eid, "none") != "none" for eid in nodes):
+        columns += MONITOR_COLUMNS
+        notes.append(MONITOR_NOTE)
+    blocks = [Heading(2, "Estimators"), accuracy]
+    if columns:
+        note = " ".join([*notes, "Bold: best in its column."])
+        blocks += [Heading(3, "Through GPS degradation"), ranked_table("estimator", nodes, columns, labels, note)]
+    return blocks
 
 
 def _without_monitor(node: dict) -> dict:
@@ -270,13 +306,13 @@ MATCHER_COLUMNS = [
     Column("success", get("success"), share, "high"),
     Column("gated", get("gated"), share),
     Column("Hz", get("hz"), lambda v: num(v, ".1f"), "high"),
-    Column("ms p95", get("ms.p95"), lambda v: num(v, ".1f")),
-    Column("points median", get("points.median"), lambda v: num(v, ".0f"), None),
+    Column("time p95 (ms)", get("ms.p95"), lambda v: num(v, ".1f")),
+    Column("points (median)", get("points.median"), lambda v: num(v, ".0f"), None),
     Column("degenerate", get("degenerate"), share),
-    Column("APE aligned rmse", get("ape_aligned.rmse"), metres),
-    Column("RPE 10 m", get("rpe_10m.mean"), metres),
-    Column("RPE 100 m", get("rpe_100m.mean"), metres),
-    Column("yaw p95 (°)", get("yaw.p95"), metres),
+    Column("APE aligned rmse (m)", get("ape_aligned.rmse"), metres),
+    Column("RPE 10 m (m)", get("rpe_10m.mean"), metres),
+    Column("RPE 100 m (m)", get("rpe_100m.mean"), metres),
+    Column("yaw p95 (°)", get("yaw.p95"), degrees),
 ]
 
 
@@ -287,8 +323,9 @@ def matchers(ctx: Context) -> list:
         return []
     note = (
         "Success: share of scans after the first with a usable match; gated: dropped by the point-count gate; "
+        "Hz and time: wall-clock rate and 95th-percentile time per registered scan; points: per scan, median; "
         "degenerate: usable matches with an unobserved direction. Errors (m) of the odometry chained from the true "
-        "start pose; APE aligned: after the best-fit rigid planar motion. Bold: best in its column."
+        "start pose; APE aligned: after the best-fit rigid planar motion; yaw in degrees. Bold: best in its column."
     )
     return [
         Heading(2, "Scan matchers"),
@@ -302,7 +339,7 @@ def gps(ctx: Context) -> list:
     if not g:
         return []
     shares = Table(
-        ["fixes", "measured", "valid (incl. dead reckoning)", "blackout", "NLOS share", "HDOP median", "faulty (> 5 m)"],
+        ["fixes (count)", "measured", "valid (incl. dead reckoning)", "blackout", "NLOS share", "HDOP median", "faulty (> 5 m)"],
         [
             [
                 Cell(str(g.get("fixes", NULL))),
@@ -314,6 +351,7 @@ def gps(ctx: Context) -> list:
                 Cell(share(g.get("faulty_5m"))),
             ]
         ],
+        "Shares of all fixes (NLOS share and faulty: of the measured ones); HDOP is dimensionless.",
     )
     keys = ("rmse", "mean", "median", "p95", "max")
     errors = Table(

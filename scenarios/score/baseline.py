@@ -28,7 +28,7 @@ from riverbench.errors import validation_message
 
 FORMAT = "riverbench-baseline"
 FORMAT_VERSION = 1
-NOT_METRICS = ("expectations", "provenance")
+NOT_METRICS = ("expectations", "provenance", "units")
 """Top-level nodes of metrics.json that hold no measured number."""
 
 

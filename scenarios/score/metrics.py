@@ -19,7 +19,7 @@ import numpy as np
 
 from riverbench.angles import wrap_angle
 from scenarios.score import windows as win
-from scenarios.score.record import FixTable, RunRecord
+from scenarios.score.record import FixTable, HeadingTable, RunRecord
 
 RPE_DISTANCES_M = (10.0, 100.0)
 FAULT_M = 5.0
@@ -92,6 +92,8 @@ FAMILIES: tuple[Family, ...] = (
     ),
     Family("drift per distance", ("*.rpe_*m.percent",), "lower", abs_tol=0.05, rel_tol=0.10),
     Family("heading error", ("*.yaw.*",), "lower", abs_tol=0.1, rel_tol=0.10),
+    Family("compass disturbance", ("compass.disturbed", "compass.disturbed_s", "estimators.*.compass.used"), "none"),
+    Family("disturbed compass used", ("estimators.*.compass.disturbed_used",), "lower", abs_tol=0.02),
     Family("recovery time", ("estimators.*.windows.*.recover_s",), "lower", abs_tol=0.5, rel_tol=0.20),
     Family("recovered share", ("estimators.*.windows.*.recovered",), "higher", abs_tol=0.01),
     Family("availability", ("estimators.*.available",), "higher", abs_tol=0.005),
@@ -328,13 +330,40 @@ def gps_metrics(fixes: FixTable) -> dict:
 
 
 def compute(rec: RunRecord, windows: list[win.Window], run_info: dict, vessel: dict) -> dict:
-    """The metrics tree (NaN where nothing could be measured; written as null in JSON); `vessel` from scenarios.score.vessel_log.metrics."""
-    return {
+    """The metrics tree (NaN where nothing could be measured; written as null in JSON); `vessel` from scenarios.score.vessel_log.metrics.
+    A run with a magnetic compass also has `compass` (its own heading error) and `estimators.<id>.compass` for those fed it."""
+    tree = {
         "run": run_info,
         "gps": gps_metrics(rec.fixes),
         "vessel": vessel,
         "estimators": {eid: estimator_metrics(rec, eid, windows) for eid in rec.estimates},
         "matchers": {mid: matcher_metrics(rec, mid) for mid in rec.matches},
+    }
+    if rec.headings is not None:
+        tree["compass"] = compass_metrics(rec.headings)
+        for eid, used in rec.headings.used.items():
+            tree["estimators"][eid]["compass"] = compass_use_metrics(rec.headings, used)
+    return tree
+
+
+COMPASS_DISTURBED_DEG = 3.0
+"""A compass heading off the truth by more than this is disturbed (steel nearby): a filter should not use it."""
+
+
+def compass_metrics(headings: HeadingTable) -> dict:
+    """The compass's own heading error, deg (abs: rmse, mean, median, p95, max), and its disturbed share and seconds."""
+    err = np.degrees(np.abs(headings.error))
+    period = float(np.median(np.diff(headings.t))) if len(headings.t) > 1 else math.nan
+    disturbed = err > COMPASS_DISTURBED_DEG
+    return {"yaw": stats(err), "disturbed": float(disturbed.mean()) if len(err) else math.nan, "disturbed_s": float(disturbed.sum() * period)}
+
+
+def compass_use_metrics(headings: HeadingTable, used: np.ndarray) -> dict:
+    """How an estimator used the compass: share of headings used, and the share of disturbed headings it used (the gate's misses)."""
+    disturbed = np.degrees(np.abs(headings.error)) > COMPASS_DISTURBED_DEG
+    return {
+        "used": float(used.mean()) if len(used) else math.nan,
+        "disturbed_used": float(used[disturbed].mean()) if disturbed.any() else math.nan,
     }
 
 

@@ -60,6 +60,21 @@ class FixTable:
 
 
 @dataclass
+class HeadingTable:
+    """Per compass output: its heading and the true one (rad, ENU yaw), and whether each estimator fed it used it."""
+
+    t: np.ndarray
+    measured: np.ndarray
+    truth: np.ndarray
+    used: dict[str, np.ndarray]
+
+    @property
+    def error(self) -> np.ndarray:
+        """The compass's heading error, rad, wrapped to [-pi, pi)."""
+        return (self.measured - self.truth + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@dataclass
 class RunRecord:
     """A finished run's columns. scan_t (N,), truth (N, 4, 4) world<-base_link, estimates[id] (N, 4, 4)
     (NaN before initialisation or after a failure), matches[id], fixes, failures (component, id,
@@ -72,6 +87,7 @@ class RunRecord:
     fixes: FixTable
     failures: list[dict] = field(default_factory=list)
     injected: list[tuple[float, float]] = field(default_factory=list)
+    headings: HeadingTable | None = None
 
 
 class Column:
@@ -106,6 +122,7 @@ class Recorder:
         self.mount, self.mount_inv = mount, np.linalg.inv(mount)
         self.scan_rows: dict[str, Column] = {}
         self.fix_rows: dict[str, Column] = {}
+        self.heading_rows: dict[str, Column] = {}
         self.failures: list[dict] = []
         self._lidar_at: dict[str, dict[float, np.ndarray]] = {m: {} for m in matcher_ids}
         self._latest_ref: dict[str, np.ndarray | None] = {m: None for m in matcher_ids}
@@ -169,6 +186,14 @@ class Recorder:
             add(f"trusted:{eid}", bool(trusted))
             add(f"stat:{eid}", float(statistic))
 
+    def heading(self, stamp: float, measured: float, truth: float, used: dict[str, bool]) -> None:
+        """One compass output: its heading, the true heading and whether each estimator fed it used it."""
+        self._add(self.heading_rows, "t", stamp)
+        self._add(self.heading_rows, "measured", measured)
+        self._add(self.heading_rows, "truth", truth)
+        for eid, ok in used.items():
+            self._add(self.heading_rows, f"used:{eid}", bool(ok))
+
     def failure(self, component: str, cid: str, stamp: float, reason: str) -> None:
         self.failures.append({"component": component, "id": cid, "stamp": float(stamp), "reason": reason})
 
@@ -212,7 +237,15 @@ class Recorder:
             fixes=fixes,
             failures=list(self.failures),
             injected=list(injected),
+            headings=self._headings(),
         )
+
+    def _headings(self) -> HeadingTable | None:
+        h = self.heading_rows
+        if "t" not in h:
+            return None
+        used = {k.split(":", 1)[1]: h[k].array().astype(bool) for k in h if k.startswith("used:")}
+        return HeadingTable(h["t"].array(), h["measured"].array(), h["truth"].array(), used)
 
 
 def nan_pose() -> np.ndarray:

@@ -5,8 +5,9 @@ noise and motion, so a paired difference removes the seed-to-seed spread). With 
 baseline_s, oriented so that positive is worse by the metric family's direction
 (scenarios.score.metrics.FAMILIES), a metric
 
-- is *unchanged* when every pair is bit-identical (the bench is deterministic: an untouched tree
-  reproduces every number exactly) or when its change is within the threshold;
+- is *unchanged* when every pair is bit-identical at the precision metrics.json publishes it
+  (scenarios.score.units; the bench is deterministic: an untouched tree reproduces every number
+  exactly) or when its change is within the threshold;
 - *regressed* (or *improved*) when the median of d_s exceeds the threshold
       max(abs_tol, rel_tol x |baseline median|, NOISE_K x sigma_seeds / sqrt(n))
   and at least all but a quarter of the seeds moved that way. sigma_seeds is the baseline's spread
@@ -27,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from riverbench.provenance import describe
+from scenarios.score import units
 from scenarios.score.baseline import Baseline
 from scenarios.score.metrics import Family, family_of
 
@@ -173,7 +175,7 @@ def compare(base: Baseline, now: Baseline, seeds: int | None = None) -> Comparis
 def judge(scenario: str, metric: str, seeds: list[int], base: list[float], now: list[float]) -> MetricVerdict:
     """The verdict on one metric from its values per seed, paired (see the module's docstring)."""
     family = family_of(metric)
-    b, n = np.asarray(base, dtype=float), np.asarray(now, dtype=float)
+    b, n = published(metric, base), published(metric, now)
     identical = bool(np.array_equal(b, n, equal_nan=True))
     both = np.isfinite(b) & np.isfinite(n)
     d = n[both] - b[both]
@@ -191,6 +193,14 @@ def judge(scenario: str, metric: str, seeds: list[int], base: list[float], now: 
             worse = np.array([sign * (np.median(n[both]) - np.median(b[both]))])
         verdict = _direction(worse, threshold, family.any_seed)
     return MetricVerdict(scenario, metric, family, list(seeds), list(b), list(n), verdict, identical, threshold, change)
+
+
+def published(metric: str, values: list[float]) -> np.ndarray:
+    """The values at the precision metrics.json publishes the metric (scenarios.score.units), so a baseline recorded
+    before metrics.json was rounded compares bit for bit with a run that reproduces it."""
+    out = np.asarray(values, dtype=float)
+    quantity = units.quantity_of(metric)
+    return out if quantity is None or quantity.decimals is None else np.round(out, quantity.decimals) + 0.0
 
 
 def seed_sigma(values: np.ndarray) -> float:

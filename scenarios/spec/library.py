@@ -60,6 +60,25 @@ def load(name_or_path: str | Path, set: list[str] | None = None, seed: int | Non
     return validate(data, path_of(name_or_path).name)
 
 
+FAST_REPLACES = ("stretch", "expect")
+"""What a [fast] table replaces: a --set of these would be silently undone by --fast."""
+
+
+def load_fast(name_or_path: str | Path, set: list[str] | None = None, seed: int | None = None) -> Scenario:
+    """The [fast] variant of a scenario (`run --fast`, `sweep --fast`), ValueError naming the scenario when it has
+    none: a full run where a short one was asked for would pass for one. Also refused: a --set of the stretch or
+    the expectations, which the [fast] table replaces (set fast.stretch or fast.expect instead). `suite --fast`
+    alone runs a scenario without one in full, as the library's baseline was measured."""
+    scenario = load(name_or_path, set, seed)
+    if scenario.fast is None:
+        raise ValueError(f"{scenario.name}: no [fast] variant (its file has no [fast] table); run it without --fast, or add one")
+    for assignment in set or []:
+        key = assignment.partition("=")[0].strip()
+        if key.split(".")[0] in FAST_REPLACES:
+            raise ValueError(f"{key}: overridden, but --fast runs the [fast] table's stretch and expectations; override fast.{key} instead")
+    return scenario.fast_variant()
+
+
 def validate(data: dict, source: str = "scenario") -> Scenario:
     """Scenario.model_validate with its errors as one line: 'file: key: message'."""
     try:

@@ -18,13 +18,16 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 import fusion
 import matcher
 import worlds
+from fusion.params import DEFAULT_SENSORS
 from riverbench.errors import validation_message
 from riverbench.plugins import is_path as is_plugin_path
 from scenarios.score.expectations import Expectation
 from sim.autopilot import AutopilotConfig
 from sim.dynamics import WamvDynamics
 from sim.gnss import GnssConfig
+from sim.imu import ImuConfig, samples_per_period
 from sim.lidar import HDL32EConfig
+from sim.magnetic_compass import CompassConfig
 from sim.traffic import TrafficConfig
 from sim.trajectory import TrajectoryConfig, mount_matrix
 
@@ -124,6 +127,11 @@ class EstimatorSpec(BaseModel):
     matcher: str | None = Field(None, description="id of the matcher whose odometry it uses (default: the only one)")
     monitor: str | None = Field(None, description="GPS integrity monitor: a name or 'package.module:Class' (default: the kind's own)")
     monitor_params: dict = Field(default_factory=dict, description="the monitor's parameters")
+    sensors: list[str] | None = Field(
+        None,
+        description="what it is fed: any of gnss, odometry, imu, compass (default: gnss and odometry; gps_only: gnss); "
+        "imu and compass simulate the [imu] and [compass] sections' sensors",
+    )
     params: dict = Field(default_factory=dict, description="the kind's parameters (see `riverbench scenarios show`)")
 
     @property
@@ -131,12 +139,19 @@ class EstimatorSpec(BaseModel):
         """What fusion.create takes: the kind or the plugin path."""
         return self.kind or self.plugin or ""
 
+    @property
+    def sensors_used(self) -> tuple[str, ...]:
+        """The sensors it is fed: `sensors`, or the default (GPS and odometry; GPS alone for gps_only)."""
+        if self.sensors is not None:
+            return tuple(self.sensors)
+        return ("gnss",) if self.kind == "gps_only" else DEFAULT_SENSORS
+
     @model_validator(mode="after")
     def _resolve(self) -> EstimatorSpec:
         _check_ref("estimator", self.id, self.kind, self.plugin)
         model = fusion.params_model(self.ref)
         where = f"estimator {self.id!r} ({self.ref})"
-        for key in ("matcher", "monitor", "monitor_params"):
+        for key in ("matcher", "monitor", "monitor_params", "sensors"):
             if key in self.params:
                 raise ValueError(f"{where}: set {key!r} on the estimator, not in its params")
         if "seed" in self.params:
@@ -145,15 +160,19 @@ class EstimatorSpec(BaseModel):
         monitor_model = fusion.monitors.params_model(monitor)
         self.monitor_params = _validated(monitor_model, self.monitor_params, f"{where} monitor {monitor!r}")
         self.monitor = monitor
-        full = _validated(model, {**self.params, "monitor": monitor, "monitor_params": self.monitor_params}, where)
-        self.params = {k: v for k, v in full.items() if k not in ("matcher", "monitor", "monitor_params", "seed")}
+        given = {"sensors": self.sensors} if self.sensors is not None else {}
+        full = _validated(model, {**self.params, "monitor": monitor, "monitor_params": self.monitor_params, **given}, where)
+        if self.sensors is not None:
+            self.sensors = list(full["sensors"])
+        self.params = {k: v for k, v in full.items() if k not in ("matcher", "monitor", "monitor_params", "seed", "sensors")}
         return self
 
     def build(self, seed: int):
         """A fresh fusion Estimator with these settings; a random one (pf) draws from the scenario's seed."""
         seeded = {"seed": seed} if "seed" in fusion.params_model(self.ref).model_fields else {}
+        sensors = {"sensors": tuple(self.sensors)} if self.sensors is not None else {}
         return fusion.create(
-            self.ref, matcher=self.matcher or "none", monitor=self.monitor, monitor_params=self.monitor_params, **self.params, **seeded
+            self.ref, matcher=self.matcher or "none", monitor=self.monitor, monitor_params=self.monitor_params, **self.params, **seeded, **sensors
         )
 
 
@@ -197,7 +216,7 @@ class Control(BaseModel):
 
 
 class FastVariant(BaseModel):
-    """What `riverbench suite --fast` runs instead: a shorter stretch with its own expectations."""
+    """What `--fast` (riverbench run, sweep, suite) runs instead: a shorter stretch with its own expectations."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -242,10 +261,17 @@ class Scenario(BaseModel):
     gnss: GnssConfig = Field(default_factory=GnssConfig, description="sim.GnssReceiver parameters (forced outages and biases are here)")
     control: Control = Field(default_factory=Control, description="open loop or closed loop")
     traffic: TrafficConfig | None = Field(None, description="other vessels moving on the river (none by default: a static world)")
+    imu: ImuConfig | None = Field(
+        None, description="sim.imu: the IMU (a datasheet preset and overrides); simulated when an estimator's sensors include imu"
+    )
+    compass: CompassConfig | None = Field(
+        None,
+        description="sim.magnetic_compass: the magnetic compass and the steel's disturbance; simulated when an estimator's sensors include compass",
+    )
     matchers: list[MatcherSpec] = Field(default_factory=_default_matchers, description="scan matchers under test")
     estimators: list[EstimatorSpec] = Field(default_factory=_default_estimators, description="estimators under test")
     expect: list[str] = Field(default_factory=list, description="'metric op value' over dotted paths of metrics.json")
-    fast: FastVariant | None = Field(None, description="the short variant `suite --fast` runs")
+    fast: FastVariant | None = Field(None, description="the short variant `--fast` runs (run, sweep, suite)")
 
     @model_validator(mode="before")
     @classmethod
@@ -263,7 +289,7 @@ class Scenario(BaseModel):
             return data  # the section's own validation names the problem
         raw = data.get("estimators", default_lists()["estimators"])
         if isinstance(raw, list) and all(isinstance(e, dict) for e in raw):
-            data = {**data, "estimators": [{**e, "params": {"mount": mount, "antenna": antenna, **(e.get("params") or {})}} for e in raw]}
+            data = {**data, "estimators": [{**e, "params": {"mount": mount, "antenna": antenna, **_field_known(e, data)}} for e in raw]}
         return data
 
     @model_validator(mode="after")
@@ -287,6 +313,7 @@ class Scenario(BaseModel):
                 est.matcher = matcher_ids[0]
             elif est.matcher not in matcher_ids:
                 raise ValueError(f"estimators.{est.id}.matcher: no matcher with id {est.matcher!r} (have {', '.join(matcher_ids) or 'none'})")
+        self._inertial_sections()
         steer = self.control.steer_on
         if self.control.mode == "closed_loop" and steer != "truth" and steer not in [e.id for e in self.estimators]:
             raise ValueError(
@@ -297,6 +324,23 @@ class Scenario(BaseModel):
         if self.fast is not None:
             self.fast.expect = [Expectation.parse(text, ids).text for text in self.fast.expect]
         return self
+
+    def _inertial_sections(self) -> None:
+        """An estimator fed imu or compass gets the sensor simulated ([imu] / [compass], default when absent); their rates
+        must give whole samples per LiDAR revolution."""
+        used = {s for e in self.estimators for s in e.sensors_used}
+        if "imu" in used and self.imu is None:
+            self.imu = ImuConfig()
+        if "compass" in used and self.compass is None:
+            self.compass = CompassConfig()
+        revolution = 1.0 / self.lidar.rate_hz
+        if self.imu is not None:
+            samples_per_period(self.imu.rate_hz, revolution)
+        if self.compass is not None:
+            try:
+                samples_per_period(self.compass.rate_hz, revolution)
+            except ValueError as exc:
+                raise ValueError(str(exc).replace("imu.rate_hz", "compass.rate_hz")) from None
 
     # ---- derived ------------------------------------------------------------------------------
     def resolved(self) -> dict:
@@ -323,7 +367,8 @@ class Scenario(BaseModel):
         return [Expectation.parse(text) for text in self.expect]
 
     def fast_variant(self) -> Scenario:
-        """The scenario `suite --fast` runs: its [fast] stretch and expectations (itself without one)."""
+        """The scenario `suite --fast` runs: its [fast] stretch and expectations, or itself without one (`run --fast` and
+        `sweep --fast` refuse that: scenarios.spec.library.load_fast)."""
         if self.fast is None:
             return self
         data = self.resolved()
@@ -334,6 +379,27 @@ class Scenario(BaseModel):
 
     def matcher_spec(self, matcher_id: str) -> MatcherSpec:
         return next(m for m in self.matchers if m.id == matcher_id)
+
+
+def _field_known(estimator: dict, data: dict) -> dict:
+    """An estimator's params; one fed the compass knows the undisturbed field of the [compass] section unless it sets its own."""
+    params = dict(estimator.get("params") or {})
+    if "compass" not in (estimator.get("sensors") or ()):
+        return params
+    try:
+        takes_inertial = "inertial" in fusion.params_model(estimator.get("kind") or estimator.get("plugin") or "").model_fields
+    except (ValueError, KeyError, ImportError, AttributeError):
+        return params  # an unknown kind: the estimator's own validation names it
+    if not takes_inertial:
+        return params
+    try:
+        compass = CompassConfig.model_validate(data.get("compass") or {})
+    except (ValueError, TypeError):
+        return params  # the section's own validation names the problem
+    inertial = params.get("inertial") or {}
+    if isinstance(inertial, dict):
+        params["inertial"] = {"field_ut": compass.intensity_ut, "dip_deg": compass.inclination_deg, **inertial}
+    return params
 
 
 def _drop_none(value):

@@ -12,10 +12,12 @@ from scenarios.report.compare.groups import (
     ACCURACY,
     APE_ALIGNED,
     APE_P95,
+    FALSE_ALARMS,
+    FAULTY,
     HZ,
     MATCHER,
     MONITOR,
-    SCORES,
+    RECALL,
     SUCCESS,
     WINDOWS,
     Configuration,
@@ -95,9 +97,11 @@ def spread_text(s: Spread | None, fmt: Callable) -> str:
     return f" ({fmt(s.lo)}–{fmt(s.hi)})" if s is not None and s.n > 1 else ""
 
 
-def spread_column(title: str, base: Column, locate: Callable[[dict], dict], failures: bool = False) -> Column:
+def spread_column(
+    title: str, base: Column, locate: Callable[[dict], dict], failures: bool = False, ranked_if: Callable[[dict], bool] | None = None
+) -> Column:
     """A column over aggregated nodes: `locate` finds the component's node, whose Spread under base's title is ranked by
-    its median and printed with its range."""
+    its median (among the nodes `ranked_if` admits) and printed with its range."""
 
     def median(node: dict) -> float | None:
         """The median, ranked and printed first."""
@@ -110,7 +114,13 @@ def spread_column(title: str, base: Column, locate: Callable[[dict], dict], fail
         text = spread_text(mine.get(base.title), base.fmt)
         return text + (f" [{mine['failures']} of {mine['runs']} runs failed]" if failures and mine.get("failures") else "")
 
-    return Column(title, median, base.fmt, base.better, detail=detail)
+    return Column(title, median, base.fmt, base.better, detail=detail, ranked_if=ranked_if)
+
+
+def _recall_above_zero(node: dict) -> bool:
+    """Whether a monitor's median recall is above 0: its false-alarm rate is ranked only then (flagging nothing is no merit)."""
+    recall = node.get(RECALL.title)
+    return recall is not None and recall.median > 0
 
 
 def _itself(node: dict) -> dict:
@@ -196,7 +206,7 @@ def conf_section(conf: Configuration, images: dict[str, str]) -> list:
 
 
 def estimator_tables(conf: Configuration) -> list:
-    """Accuracy with the failure rate, then worst errors through GPS degradation and the monitor's scores."""
+    """Availability and accuracy with the failure rate, then worst errors through GPS degradation and the monitor's scores."""
     nodes = conf.estimators
     if not nodes:
         return []
@@ -206,25 +216,27 @@ def estimator_tables(conf: Configuration) -> list:
         nodes,
         [*(spread_column(c.title, c, _itself) for c in ACCURACY), FAILURE_COLUMN],
         labels,
-        "Horizontal errors in metres; RPE: mean error per 100 m of true travel; failure rate: share of runs in "
-        "which the estimator failed. " + SPREAD_NOTE,
+        "Available: share of a run's scans with an estimate (an estimator that starts late has less, and its errors cover "
+        "fewer scans); errors: horizontal, in metres, over those scans; RPE: mean error per 100 m of true travel; yaw: heading "
+        "error in degrees; failure rate: share of runs in which the estimator failed. " + SPREAD_NOTE,
     )
-    present = [c for c in [*WINDOWS, *SCORES] if any(n.get(c.title) for n in nodes.values())]
+    windows = [c for c in WINDOWS if any(n.get(c.title) for n in nodes.values())]
+    monitored = any(n.get("monitor_kind", "none") != "none" for n in nodes.values())
     blocks = [Heading(3, "Estimators"), accuracy]
-    if present:
-        columns = [spread_column(c.title, c, _itself) for c in present if c in WINDOWS] + [MONITOR]
-        columns += [spread_column(c.title, c, _itself) for c in present if c in SCORES]
-        blocks.append(
-            document.ranked_table(
-                "estimator",
-                nodes,
-                columns,
-                labels,
-                "Worst horizontal error (m) inside any window of that kind (blackout: under bridges; NLOS: "
-                "reflected signals beside walls). Monitor: recall and false-alarm rate on measured fixes whose "
-                "environment-added error exceeds 5 m. " + SPREAD_NOTE,
+    if windows or monitored:
+        columns = [spread_column(c.title, c, _itself) for c in windows]
+        notes = []
+        if windows:
+            notes.append("Worst horizontal error (m) inside any window of that kind (blackout: under bridges; NLOS: reflected signals beside walls).")
+        if monitored:
+            columns += [MONITOR, spread_column(FAULTY.title, FAULTY, _itself), spread_column(RECALL.title, RECALL, _itself)]
+            columns.append(spread_column(FALSE_ALARMS.title, FALSE_ALARMS, _itself, ranked_if=_recall_above_zero))
+            notes.append(
+                "Monitor: faulty fixes: measured fixes with more than 5 m added by the environment; recall: the share of those "
+                "it flagged (– when there were none); false alarms: the share of the other measured fixes it flagged, ranked "
+                "only beside a median recall above 0 (flagging nothing is no merit)."
             )
-        )
+        blocks.append(document.ranked_table("estimator", nodes, columns, labels, " ".join([*notes, SPREAD_NOTE])))
     return blocks
 
 
@@ -234,8 +246,9 @@ def matcher_tables(conf: Configuration) -> list:
         return []
     columns = [*(spread_column(c.title, c, _itself) for c in MATCHER), FAILURE_COLUMN]
     note = (
-        "Success: share of scans with a usable match; degenerate: usable matches with an unobserved direction; errors (m) of the "
-        "odometry chained from the true start, APE aligned after the best-fit planar motion. " + SPREAD_NOTE
+        "Success: share of scans with a usable match; degenerate: usable matches with an unobserved direction; Hz and time: "
+        "wall-clock rate and 95th-percentile time per registered scan; points: per scan; errors (m) of the odometry chained "
+        "from the true start, APE aligned after the best-fit planar motion; yaw in degrees. " + SPREAD_NOTE
     )
     return [Heading(3, "Scan matchers"), document.ranked_table("matcher", conf.matchers, columns, {cid: cid for cid in conf.matchers}, note)]
 
@@ -285,12 +298,14 @@ def _relative(path: Path, out_dir: Path) -> str:
 
 
 def runs_section(confs: list[Configuration], out_dir: Path) -> list:
-    """Every run compared: configuration, seed, hash, path, expectations passed, failed components."""
+    """Every run compared: configuration, seed, hash, path, expectations passed, each failed expectation with its value
+    and threshold, failed components."""
     rows = []
     for conf in confs:
         for run in conf.runs:
             outcomes = run.metrics.get("expectations") or []
             passed = sum(bool(o.get("pass")) for o in outcomes)
+            missed = [failed_expectation(o) for o in outcomes if not o.get("pass")]
             broken = [cid for kind in ("estimators", "matchers") for cid in run.metrics.get(kind) or {} if failed(run, kind, cid)]
             rows.append(
                 [
@@ -299,10 +314,24 @@ def runs_section(confs: list[Configuration], out_dir: Path) -> list:
                     Cell(run.hash or NULL),
                     Cell(_relative(run.path, out_dir), css="text"),
                     Cell(f"{passed}/{len(outcomes)}", css=("pass" if passed == len(outcomes) else "fail") if outcomes else ""),
-                    Cell(", ".join(broken), css="fail" if broken else ""),
+                    Cell("; ".join(missed), css="fail" if missed else "text"),
+                    Cell(", ".join(broken), css="fail" if broken else "text"),
                 ]
             )
+    note = (
+        "Paths relative to this report. Failed expectations: the metric (a dotted path of the run's metrics.json), its value "
+        "and the bound it missed; failed components: estimators and matchers that failed during the run."
+    )
     return [
         Heading(2, "Runs"),
-        Table(["configuration", "seed", "hash", "path", "expectations passed", "failed"], rows, "Paths relative to this report."),
+        Table(["configuration", "seed", "hash", "path", "expectations passed", "failed expectations", "failed components"], rows, note),
     ]
+
+
+def failed_expectation(outcome: dict) -> str:
+    """'estimators.ekf.ape.p95 = 9.12 (expected < 8.4)': a failed expectation's metric, value and bound (or why it has no value)."""
+    path, op, bound = (str(outcome.get("expect", "")).split() + ["", "", ""])[:3]
+    value = outcome.get("value")
+    if value is None or value != value:
+        return f"{outcome.get('expect', NULL)}: {outcome.get('reason') or 'no value'}"
+    return f"{path} = {value:.4g} (expected {op} {bound})"

@@ -22,11 +22,14 @@ def _pick(columns: list[Column], *titles: str) -> list[Column]:
     return [by_title[t] for t in titles]
 
 
-ACCURACY = _pick(report.ACCURACY_COLUMNS, "APE rmse", "APE p95", "APE max", "RPE 100 m", "yaw p95 (°)")
-WINDOWS = _pick(report.DEGRADATION_COLUMNS, "blackout max", "NLOS max", "reacquisition max")
-MONITOR, *SCORES = _pick(report.DEGRADATION_COLUMNS, "monitor", "recall", "false alarms")
-MATCHER = _pick(report.MATCHER_COLUMNS, "success", "degenerate", "Hz", "ms p95", "points median", "APE aligned rmse", "RPE 100 m", "yaw p95 (°)")
-APE_P95, BLACKOUT, NLOS = ACCURACY[1], WINDOWS[0], WINDOWS[1]
+ACCURACY = _pick(report.ACCURACY_COLUMNS, "available", "APE rmse (m)", "APE p95 (m)", "APE max (m)", "RPE 100 m (m)", "yaw p95 (°)")
+WINDOWS = _pick(report.DEGRADATION_COLUMNS, "blackout max (m)", "NLOS max (m)", "reacquisition max (m)")
+MONITOR, *SCORES = _pick(report.DEGRADATION_COLUMNS, "monitor", "faulty fixes", "recall", "false alarms")
+MATCHER = _pick(
+    report.MATCHER_COLUMNS, "success", "degenerate", "Hz", "time p95 (ms)", "points (median)", "APE aligned rmse (m)", "RPE 100 m (m)", "yaw p95 (°)"
+)
+AVAILABLE, APE_P95, BLACKOUT, NLOS = ACCURACY[0], ACCURACY[2], WINDOWS[0], WINDOWS[1]
+FAULTY, RECALL, FALSE_ALARMS = SCORES
 SUCCESS, HZ, APE_ALIGNED = MATCHER[0], MATCHER[2], MATCHER[5]
 
 
@@ -122,11 +125,16 @@ def label_text(flat: dict[str, object], keys: list[str]) -> str:
 
 def label_keys(flat: list[dict[str, object]]) -> list[str]:
     """The dotted keys whose values differ between a scenario's configurations; those that every configuration sets when
-    they suffice to tell them apart (a key only some set is mostly a default that follows from another, e.g. a monitor's params)."""
+    they suffice to tell them apart (a key only some set is mostly a default that follows from another, e.g. a monitor's params);
+    else without the parameters of a component whose kind differs (they follow from it) when the rest still tells them apart."""
     keys = list(dict.fromkeys(k for f in flat for k in f))
     differing = [k for k in keys if len({value_text(f.get(k)) for f in flat}) > 1]
     shared = [k for k in differing if all(k in f for f in flat)]
-    return shared if len({label_text(f, shared) for f in flat}) == len(flat) else differing
+    if len({label_text(f, shared) for f in flat}) == len(flat):
+        return shared
+    owners = [k.removesuffix(".kind") for k in differing if k.endswith(".kind")]  # a component added, removed or of another kind
+    brief = [k for k in differing if not any(k.startswith(f"{o}.") and k != f"{o}.kind" for o in owners)]
+    return brief if len({label_text(f, brief) for f in flat}) == len(flat) else differing
 
 
 def _configuration(scenario: str, label: str, runs: list[RunInfo]) -> Configuration:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, replace
 from scenarios.report.compare.groups import (
     APE_ALIGNED,
     APE_P95,
+    AVAILABLE,
     BLACKOUT,
     HZ,
     NLOS,
@@ -83,20 +84,31 @@ def quote(s: Spread, criterion: Criterion, seeds: bool) -> str:
     return f"{text} ({fmt(s.lo)}–{fmt(s.hi)}{f' over {s.n} seeds' if seeds else ''})"
 
 
-def sentence(criterion: Criterion, d: Duel) -> str:
-    """One factual sentence: the winner against the runner-up, and whether the gap exceeds the spread over seeds."""
+def sentence(criterion: Criterion, d: Duel, nodes: dict[str, dict] | None = None) -> str:
+    """One factual sentence: the winner against the runner-up, and whether the gap exceeds the spread over seeds; for
+    estimators (given their `nodes`), how many of the scans each had an estimate on when either missed some."""
     v = verdict(d, criterion.column)
+    coverage = availability(d, nodes) if criterion.kind == "estimators" and nodes else ""
     if v == "tie":
-        return f"{criterion.phrase}: {d.winner} and {d.runner_up} tie at {criterion.column.fmt(d.best.median)}{criterion.unit}."
+        return f"{criterion.phrase}: {d.winner} and {d.runner_up} tie at {criterion.column.fmt(d.best.median)}{criterion.unit}.{coverage}"
     return (
         f"{criterion.phrase}: {d.winner} {quote(d.best, criterion, True)} against {d.runner_up} "
-        f"{quote(d.second, criterion, d.second.n != d.best.n)}: {VERDICTS[v]}."
+        f"{quote(d.second, criterion, d.second.n != d.best.n)}: {VERDICTS[v]}.{coverage}"
     )
+
+
+def availability(d: Duel, nodes: dict[str, dict]) -> str:
+    """' Available (share of the scans with an estimate, the scans its errors cover): ekf 85.7 %, gps_only 99.9 %.' when
+    either estimator lacked an estimate on some scans (a late start, a gap), else nothing."""
+    texts = [AVAILABLE.fmt(s.median if (s := nodes.get(cid, {}).get(AVAILABLE.title)) else None) for cid in (d.winner, d.runner_up)]
+    if all(t == AVAILABLE.fmt(1.0) for t in texts):
+        return ""
+    return f" Available (share of the scans with an estimate, the scans its errors cover): {d.winner} {texts[0]}, {d.runner_up} {texts[1]}."
 
 
 def conf_sentences(conf: Configuration) -> list[str]:
     """Per criterion with two or more components to compare, who wins in this configuration."""
-    return [sentence(c, d) for c in CRITERIA if (d := duel(getattr(conf, c.kind), c.column))]
+    return [sentence(c, d, getattr(conf, c.kind)) for c in CRITERIA if (d := duel(getattr(conf, c.kind), c.column))]
 
 
 def tally(confs: list[Configuration], criterion: Criterion) -> str | None:
@@ -122,7 +134,7 @@ def overall_sentences(confs: list[Configuration]) -> list[str]:
     out = [t for c in CRITERIA if (t := tally(confs, c))]
     for conf in (c for c in confs if c.scenario == OPEN_WATER):
         if d := duel(conf.estimators, APE_P95):
-            out.append(sentence(replace(CRITERIA[0], phrase=f"Open water ({conf.title}), lowest APE p95"), d))
+            out.append(sentence(replace(CRITERIA[0], phrase=f"Open water ({conf.title}), lowest APE p95"), d, conf.estimators))
     failures = [
         f"{cid} ({kind.removesuffix('s')}) in {node['failures']} of {plural(node['runs'], 'run')} of {conf.title}"
         for conf in confs

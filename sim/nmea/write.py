@@ -1,9 +1,9 @@
-"""NMEA 0183 (v2.3) sentences a GPS receiver writes per epoch (GGA, RMC, GSA, GSV), and a parser.
+"""NMEA 0183 (v2.3) sentences the simulated GPS receiver writes per epoch (GGA, RMC, GSA, GSV).
 
 Talker "GP" (GPS only). Latitude/longitude carry 5 decimals of minutes (~2 cm), time 2 decimals of
 seconds, as common consumer receivers write them. GGA's altitude field holds the fix's altitude
-with a geoid separation of 0 (the worlds' heights are taken as orthometric). The parser checks the
-checksum and decodes the fields back into numbers; `parse_epoch` merges one epoch's sentences.
+with a geoid separation of 0 (the worlds' heights are taken as orthometric). sim.nmea.read reads
+them back (and what real receivers write).
 
 The writers take any object with the fields they read (`Fix`, `Satellite`: sim.gnss_fix's GnssFix and
 SatelliteReport have them), so this module imports nothing of the receiver's and GnssFix.nmea() can use it.
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from datetime import UTC, date, datetime, timedelta
+from datetime import datetime, timedelta
 from functools import reduce
 from typing import Protocol
 
@@ -150,109 +150,3 @@ def gsv(fix: Fix) -> list[str]:
 def fix_sentences(fix: Fix) -> list[str]:
     """All sentences of one epoch in the order receivers write them: GGA, RMC, GSA, GSV..."""
     return [gga(fix), rmc(fix), gsa(fix), *gsv(fix)]
-
-
-# ---------------------------------------------------------------------------------------- parsing
-
-
-def parse(line: str) -> dict:
-    """Decode one sentence into a dict ('type' plus typed fields); ValueError on a bad checksum or format."""
-    text = line.strip()
-    if not text.startswith("$") or "*" not in text:
-        raise ValueError(f"nmea: not a sentence: {text!r}")
-    body, _, given = text[1:].rpartition("*")
-    if given.upper() != checksum(body):
-        raise ValueError(f"nmea: checksum {given!r} does not match {checksum(body)} in {text!r}")
-    fields = body.split(",")
-    kind = fields[0][2:]
-    decoder = _DECODERS.get(kind)
-    if decoder is None:
-        raise ValueError(f"nmea: unsupported sentence type {fields[0]!r}")
-    try:
-        return {"type": kind, **decoder(fields[1:])}
-    except (IndexError, ValueError) as exc:
-        raise ValueError(f"nmea: malformed {kind} sentence {text!r}: {exc}") from None
-
-
-def _float(field: str) -> float:
-    return float(field) if field else math.nan
-
-
-def _coord(value: str, hemisphere: str, degree_digits: int) -> float:
-    if not value:
-        return math.nan
-    degrees = int(value[:degree_digits]) + float(value[degree_digits:]) / 60.0
-    return -degrees if hemisphere in ("S", "W") else degrees
-
-
-def _seconds_of_day(value: str) -> float:
-    return int(value[0:2]) * 3600 + int(value[2:4]) * 60 + float(value[4:])
-
-
-def _gga(f: list[str]) -> dict:
-    return {
-        "seconds_of_day": _seconds_of_day(f[0]),
-        "lat": _coord(f[1], f[2], 2),
-        "lon": _coord(f[3], f[4], 3),
-        "quality": int(f[5]),
-        "num_sats": int(f[6]),
-        "hdop": _float(f[7]),
-        "alt": _float(f[8]) + (_float(f[10]) if f[10] else 0.0),
-    }
-
-
-def _rmc(f: list[str]) -> dict:
-    day = date(2000 + int(f[8][4:6]), int(f[8][2:4]), int(f[8][0:2]))
-    return {
-        "seconds_of_day": _seconds_of_day(f[0]),
-        "valid": f[1] == "A",
-        "lat": _coord(f[2], f[3], 2),
-        "lon": _coord(f[4], f[5], 3),
-        "speed_mps": _float(f[6]) * KNOT_MPS,
-        "course_deg": _float(f[7]),
-        "date": day,
-        "mode": f[11] if len(f) > 11 else "",
-    }
-
-
-def _gsa(f: list[str]) -> dict:
-    return {
-        "fix_type": int(f[1]),
-        "prns": [int(p) for p in f[2 : 2 + MAX_GSA_PRNS] if p],
-        "pdop": _float(f[14]),
-        "hdop": _float(f[15]),
-        "vdop": _float(f[16]),
-    }
-
-
-def _gsv(f: list[str]) -> dict:
-    sats = []
-    for i in range(3, len(f) - 3, 4):
-        prn, el, az, snr = f[i : i + 4]
-        sats.append((int(prn), int(el), int(az), int(snr) if snr else None))
-    return {"total": int(f[0]), "index": int(f[1]), "in_view": int(f[2]), "sats": sats}
-
-
-_DECODERS = {"GGA": _gga, "RMC": _rmc, "GSA": _gsa, "GSV": _gsv}
-
-
-def parse_epoch(lines: list[str]) -> dict:
-    """Merge one epoch's GGA, RMC, GSA and GSV sentences into one dict (utc as an aware datetime)."""
-    out: dict = {"sats": []}
-    for line in lines:
-        msg = parse(line)
-        kind = msg.pop("type")
-        if kind == "GSV":
-            out["sats"].extend(msg["sats"])
-            out["in_view"] = msg["in_view"]
-        elif kind == "GSA":
-            out.update(used=msg["prns"], pdop=msg["pdop"], vdop=msg["vdop"], fix_type=msg["fix_type"])
-        elif kind == "RMC":
-            out.update(date=msg["date"], speed_mps=msg["speed_mps"], course_deg=msg["course_deg"], mode=msg["mode"])
-            out.setdefault("seconds_of_day", msg["seconds_of_day"])
-        else:
-            out.update(msg)
-    if "date" in out and "seconds_of_day" in out:
-        midnight = datetime(out["date"].year, out["date"].month, out["date"].day, tzinfo=UTC)
-        out["utc"] = midnight + timedelta(seconds=out["seconds_of_day"])
-    return out

@@ -572,9 +572,10 @@ def export(
 @app.command()
 def replay(
     recording: Path = typer.Argument(
-        ..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too), a Velodyne HDL-32E pcap, or an NMEA log (a GNSS-only replay)"
+        ..., help="a rosbag2 bag (sqlite3 or MCAP; a ROS 1 .bag too), a Velodyne pcap (HDL-32E, VLP-16, VLP-32C...), or an NMEA log"
     ),
     scenario: str = typer.Option(..., help="the scenario whose matchers, estimators, mount and world origin to use (name or .toml)"),
+    set_: list[str] = typer.Option([], "--set", help="override a field of the scenario: key=value (TOML value), repeatable"),
     out: Path = typer.Option(None, help="run directory (default runs/replay-<name>-<UTC time>/)"),
     lidar_topic: str = typer.Option(None, help="the PointCloud2 topic (default: the only one)"),
     gps_topic: str = typer.Option(None, help="the NMEA Sentence or NavSatFix topic (default: the only one)"),
@@ -597,7 +598,7 @@ def replay(
         with user_errors():
             if not recording.exists():
                 raise ValueError(f"{recording}: no such bag, pcap or NMEA log")
-            scenarios_spec = load_scenario(scenario)
+            scenarios_spec = load_scenario(scenario, set=set_)
         try:
             with user_errors(), RunProgress(recording.name, console, quiet) as progress:
                 result = replay_recording(
@@ -620,6 +621,8 @@ def replay(
     run = result.metrics["run"]
     if "nmea" in run["recording"]:
         console.print(f"NMEA: {run['recording']['nmea']['summary']}", highlight=False)
+    for warning in run.get("warnings", []):
+        errors.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
     what = f"{run['fixes']} fixes (GNSS-only: no LiDAR, estimators without a matcher)" if run["gnss_only"] else f"{run['scans']} scans"
     console.print(f"replayed {what}: {target}", highlight=False)
 

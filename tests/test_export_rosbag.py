@@ -27,7 +27,8 @@ import scenarios.export as export_module
 import sim
 from scenarios.export import export
 from scenarios.export.frames import open_stream
-from scenarios.export.ros_messages import ros_ns
+from scenarios.export.ros_messages import GNSS_REPORT, ros_ns
+from scenarios.export.rosbag import fix_ns
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import bag as replay_bag
 from scenarios.replay.recording import Place
@@ -154,6 +155,7 @@ def test_a_bag_directory_with_every_topic_and_its_count(canal, fmt):
         "/gps/fix": ("sensor_msgs/msg/NavSatFix", len(fixes)),
         "/gps/extended_fix": ("gps_msgs/msg/GPSFix", len(fixes)),
         "/nmea_sentence": ("nmea_msgs/msg/Sentence", sum(len(fix.nmea()) for fix in fixes)),
+        "/gps/report": (GNSS_REPORT, len(fixes)),
         "/tf_static": ("tf2_msgs/msg/TFMessage", 1),
         "/ground_truth/odom": ("nav_msgs/msg/Odometry", len(frames)),
         "/ground_truth/tf": ("tf2_msgs/msg/TFMessage", len(frames)),
@@ -205,7 +207,8 @@ def test_the_mcap_file_is_read_by_the_mcap_librarys_own_ros2_decoder(canal):
         summary = reader.get_summary()
         decoded = [msg for _, _, _, msg in reader.iter_decoded_messages(topics=["/velodyne_points", "/gps/extended_fix"])]
     assert {c.topic: summary.statistics.channel_message_counts[i] for i, c in summary.channels.items()}["/velodyne_points"] == len(frames)
-    assert len(summary.chunk_indexes) == len(frames) + 1  # /tf_static, then a chunk per revolution
+    # /tf_static, then a chunk per revolution (its cloud and the previous revolution's fixes), then the last one's fixes
+    assert len(summary.chunk_indexes) == len(frames) + 1 + bool(frames[-1].fixes)
     clouds = [msg for msg in decoded if hasattr(msg, "point_step")]
     for cloud, frame in zip(clouds, frames, strict=True):
         assert cloud.header.frame_id == "velodyne" and cloud.point_step == 22
@@ -306,6 +309,34 @@ def test_gps_fix_carries_the_receivers_dops_and_satellites_as_gpsd_client(outage
             assert math.isnan(msg.climb) and math.isnan(msg.err_vert)
         else:  # STATUS_NO_FIX, the solution's fields left at zero as the driver leaves them
             assert msg.status.status == -1 and msg.hdop == msg.latitude == msg.time == 0.0
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_the_report_topic_holds_the_receivers_epoch_unrounded(canal, fmt):
+    bags, (info, frames) = canal
+    fixes = [fix for frame in frames for fix in frame.fixes]
+    for (t, msg), fix in zip(messages(bags[fmt], "/gps/report"), fixes, strict=True):
+        assert t == ns(msg.header.stamp) == ros_ns(info.epoch_utc, fix.stamp) and msg.header.frame_id == "gps"
+        assert (msg.quality, msg.num_sats, msg.hdop, msg.vdop, msg.pdop) == (fix.quality, fix.num_sats, fix.hdop, fix.vdop, fix.pdop)
+        np.testing.assert_array_equal([msg.speed_mps, msg.course_deg], [fix.speed_mps, fix.course_deg])
+        columns = [list(msg.prn), list(msg.azimuth_deg), list(msg.elevation_deg), list(msg.cn0_dbhz), list(msg.used), msg.system, msg.signal]
+        assert list(zip(*columns, strict=True)) == [(s.prn, s.az_deg, s.el_deg, s.snr, s.used, s.system, s.signal) for s in fix.sats]
+        assert any(s.snr != round(s.snr) for s in fix.sats)  # what GSV's and GPSFix's whole dB-Hz would lose
+    (path,) = bags["mcap"].glob("*.mcap")
+    with path.open("rb") as stream:  # the type travels in the file: the mcap library decodes it without riverbench's typestore
+        decoded = [msg for _, _, _, msg in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/gps/report"])]
+    assert [list(m.cn0_dbhz) for m in decoded] == [[s.snr for s in fix.sats] for fix in fixes]
+
+
+def test_a_fix_before_a_scan_of_the_same_nanosecond_is_stamped_before_it():
+    """At t = 0.6 s the receiver's epoch (3 / 5 = 0.6) comes before the scan (6 * 0.1 = 0.6000000000000001): both round to
+    600000000 ns, so the fix is written at 599999999 ns to keep the run's order for a reader that puts scans first."""
+    info, _ = open_stream(scenarios.load("open_river", set=["stretch={start_s = 0.0, end_s = 1.0}"]))
+    epoch = ros_ns(info.epoch_utc, 0.0)
+    assert 3 / 5 < 6 * 0.1 and ros_ns(info.epoch_utc, 3 / 5) == ros_ns(info.epoch_utc, 6 * 0.1) == epoch + 600_000_000
+    assert fix_ns(info, 3 / 5, 6 * 0.1) == epoch + 599_999_999
+    assert fix_ns(info, 0.4, 6 * 0.1) == fix_ns(info, 0.4, None) == epoch + 400_000_000  # any other fix: its own stamp
+    assert fix_ns(info, 6 * 0.1, 6 * 0.1 + 0.1) == epoch + 600_000_000  # a fix at the scan's own stamp comes after it anyway
 
 
 def test_the_replay_reader_reads_rings_back_as_laser_ids(canal):

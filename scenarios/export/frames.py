@@ -133,7 +133,7 @@ def _estimated_frames(scenario: Scenario, run: VesselRun, t_start: float, estima
     loop); with `estimates` each frame gets their outputs at its scan, read once they have that scan and nothing later."""
     awaiting: deque[Frame] = deque()  # frames whose scan the estimators have not had yet, oldest first
 
-    def record(stamp: float) -> None:
+    def record(stamp: float, results: dict) -> None:
         """The estimators have the scan of the oldest awaiting frame: keep each initialised one's pose and covariance."""
         frame = awaiting.popleft()
         for eid in feed.estimators if estimates else ():

@@ -22,13 +22,16 @@ the factory bytes 0x37 (strongest return) and 0x21 (HDL-32E).
   202 (2 = locked), and at 206 the $GPRMC sentence with CR/LF, null-padded (a sentence with
   5-decimal minutes is longer than the manual's 72-byte field; the bytes after it are unused). The
   sentence is the receiver's RMC of its latest fix before the packet; before the first fix the
-  NMEA and PPS fields are zero, as the manuals describe a sensor without GPS.
+  NMEA and PPS fields are zero, as the manuals describe a sensor without GPS. A fix after the last
+  of them (an epoch at the stretch's very end) gets one more position packet, at its own time (or
+  the last data packet's, when that is later).
 - Frames: Ethernet broadcast from 192.168.1.201 (the factory address) to 255.255.255.255, IPv4,
   UDP without checksum; record times are the packets' first-firing UTC times (microseconds).
 """
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Iterable
 from pathlib import Path
@@ -76,6 +79,7 @@ def write(info: StreamInfo, frames: Iterable[Frame], path: Path) -> dict[str, in
     packet_offset = np.arange(-(-n_firings // BLOCKS)) * BLOCKS * FIRING_CYCLE_S
     phase = -HDL32EConfig.model_fields["start_azimuth_deg"].default % 360.0
     latest: list[GnssFix] = []  # the last fix of the frames written so far
+    relayed = -math.inf  # the stamp of the newest fix a position packet carried
     counts = {"packets": 0, "points": 0, "position_packets": 0}
     path = Path(path)
     try:
@@ -91,9 +95,15 @@ def write(info: StreamInfo, frames: Iterable[Frame], path: Path) -> dict[str, in
                 position = position_packets(fixes, frame.stamp + packet_offset[after], data["stamp"][after])
                 out.write(interleaved(records(data, packet_us, DATA_PORT), records(position, packet_us[after], POSITION_PORT), after))
                 latest = fixes[-1:]
+                if len(after) and fixes:
+                    relayed = max(relayed, max((f.stamp for f in fixes if f.stamp <= frame.stamp + packet_offset[after[-1]]), default=relayed))
                 counts["packets"] += len(data)
                 counts["points"] += len(points)
                 counts["position_packets"] += len(position)
+            if latest and latest[0].stamp > relayed:  # the stream's last fix came after its last position packet
+                at = np.array([max(epoch_us + round(latest[0].stamp * 1e6), int(packet_us[-1]))])
+                out.write(records(position_packets(latest, np.array([latest[0].stamp]), at % US_PER_HOUR), at, POSITION_PORT).tobytes())
+                counts["position_packets"] += 1
     except BaseException:
         path.unlink(missing_ok=True)
         raise

@@ -33,6 +33,13 @@
   sigma_d = sigma / sqrt(dt); the sim draws it so, sim.sensor_noise).
 - MagneticField, frame `imu_link`: the magnetometer's field in tesla as sensor_msgs/MagneticField
   wants (the Xsens driver writes its normalised units instead), covariance diagonal (noise)^2.
+- riverbench_msgs/GnssReport, frame `gps`: the receiver's epoch report at full precision, which NMEA
+  and GPSFix round (each satellite's elevation, azimuth and C/N0 to whole degrees and dB-Hz; NMEA's
+  DOPs to 1-2 decimals, speed and course to 3 and 2): GGA quality, satellites used, HDOP, VDOP, PDOP,
+  speed (m/s) and course (deg from north), and per satellite in view its PRN, azimuth, elevation,
+  C/N0 (0: not tracked), use in the solution, system and signal. No ROS driver publishes C/N0 finer than 1 dB-Hz;
+  this type is riverbench's own, so that a replay gives the C/N0 monitor what the run gave it. Its
+  definition travels in the bag (MCAP schema, rosbag2 message definitions).
 - TFMessage of TransformStamped; nav_msgs/Odometry (pose and its covariance; twist not given, zero).
 Time: ROS time = the scenario's UTC epoch + the simulation stamp, in integer nanoseconds.
 """
@@ -59,6 +66,24 @@ IMU_FRAME = "imu_link"
 BASE_FRAME = "base_link"
 MAP_FRAME = "map"
 SENTENCE_MSG = "std_msgs/Header header\nstring sentence\n"
+GNSS_REPORT = "riverbench_msgs/msg/GnssReport"
+GNSS_REPORT_MSG = """std_msgs/Header header
+int16 quality
+uint16 num_sats
+float64 hdop
+float64 vdop
+float64 pdop
+float64 speed_mps
+float64 course_deg
+uint16[] prn
+float64[] azimuth_deg
+float64[] elevation_deg
+float64[] cn0_dbhz
+bool[] used
+string[] system
+string[] signal
+"""
+"""riverbench_msgs/msg/GnssReport: riverbench's own, see the module docstring."""
 GPS_STATUS_MSG = """std_msgs/Header header
 uint16 satellites_used
 int32[] satellite_used_prn
@@ -137,11 +162,13 @@ POINT = np.dtype(
 
 
 def typestore() -> Typestore:
-    """ROS 2 Humble's message types plus nmea_msgs/msg/Sentence and gps_msgs' GPSStatus and GPSFix (not in the default store)."""
+    """ROS 2 Humble's message types plus nmea_msgs/msg/Sentence, gps_msgs' GPSStatus and GPSFix and riverbench_msgs/msg/GnssReport
+    (not in the default store)."""
     store = get_typestore(Stores.ROS2_HUMBLE)
     store.register(get_types_from_msg(SENTENCE_MSG, "nmea_msgs/msg/Sentence"))
     store.register(get_types_from_msg(GPS_STATUS_MSG, "gps_msgs/msg/GPSStatus"))
     store.register(get_types_from_msg(GPS_FIX_MSG, "gps_msgs/msg/GPSFix"))
+    store.register(get_types_from_msg(GNSS_REPORT_MSG, GNSS_REPORT))
     return store
 
 
@@ -244,6 +271,28 @@ def gps_fix(store: Typestore, ns: int, fix: GnssFix):
 def sentences(store: Typestore, ns: int, fix: GnssFix) -> list:
     """One nmea_msgs/Sentence per NMEA sentence of the fix."""
     return [store.types["nmea_msgs/msg/Sentence"](header=header(store, ns, GPS_FRAME), sentence=text) for text in fix.nmea()]
+
+
+def gnss_report(store: Typestore, ns: int, fix: GnssFix):
+    """The fix's receiver report at full precision (riverbench_msgs/GnssReport, see the module docstring)."""
+    sats = fix.sats
+    return store.types[GNSS_REPORT](
+        header=header(store, ns, GPS_FRAME),
+        quality=int(fix.quality),
+        num_sats=int(fix.num_sats),
+        hdop=float(fix.hdop),
+        vdop=float(fix.vdop),
+        pdop=float(fix.pdop),
+        speed_mps=float(fix.speed_mps),
+        course_deg=float(fix.course_deg),
+        prn=np.array([s.prn for s in sats], dtype=np.uint16),
+        azimuth_deg=np.array([s.az_deg for s in sats], dtype=np.float64),
+        elevation_deg=np.array([s.el_deg for s in sats], dtype=np.float64),
+        cn0_dbhz=np.array([s.snr for s in sats], dtype=np.float64),
+        used=np.array([s.used for s in sats], dtype=bool),
+        system=[s.system for s in sats],
+        signal=[s.signal for s in sats],
+    )
 
 
 def quaternion(store: Typestore, pose: np.ndarray):

@@ -9,6 +9,8 @@ Topics (messages detailed in ros_messages.py, the drivers' conventions in dialec
                             robot_localization's navsat_transform_node subscribes to)
     /nmea_sentence          nmea_msgs/Sentence, each NMEA sentence of each fix (nmea_navsat_driver's nmea_topic_driver input)
     /gps/extended_fix       gps_msgs/GPSFix, one per fix, frame gps (gpsd_client): the DOPs and satellites NavSatFix lacks
+    /gps/report             riverbench_msgs/GnssReport, one per fix, frame gps (riverbench's own): its DOPs and satellites
+                            unrounded (GPSFix and NMEA give C/N0 and elevation in whole dB-Hz and degrees)
     /tf_static              tf2_msgs/TFMessage, once at the stream's start: the boat's sensor mounts, base_link -> velodyne
                             (the lidar mount) and base_link -> gps (the antenna offset); offered QoS transient_local (latched)
     /imu/data               sensor_msgs/Imu, one per IMU sample, frame imu_link (xsens_mti_driver's topic and frame), only when an
@@ -22,18 +24,24 @@ Topics (messages detailed in ros_messages.py, the drivers' conventions in dialec
                             with its covariance (x, y, yaw; the rest zero: not estimated)
 Nothing is published on /tf: a localization stack run on the bag publishes map -> odom -> base_link
 there itself (REP-105), and a second parent of base_link would break its tree.
-Every message is recorded at its header stamp. The bag is written frame by frame and each frame's
-messages are on disk before the next frame is read (the sqlite3 transaction is committed, the MCAP
-chunk closed: a chunk per revolution), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
+Every message is recorded at its header stamp, the simulation stamp rounded to the nanosecond, except
+that a fix the run took before a scan whose stamp rounds to the same nanosecond (a fix at 0.6 s and a
+scan at 0.6000000000000001 s: both sensors' epochs, on grids that meet, differ in the last bit of a
+float) is stamped 1 ns earlier: a reader orders a scan before a fix at the same stamp, as the
+simulation does at equal stamps, so the bag keeps the run's order and a replay feeds the estimators
+what the run fed them. The bag is written frame by frame: each frame's cloud, truth and estimates are
+on disk before the next frame is read (the sqlite3 transaction is committed, the MCAP chunk closed: a
+chunk per revolution, the last revolution's fixes in one more); its fixes and IMU samples go with the
+next frame, once the next scan's stamp is known (for that rule), so memory stays flat. Read with rosbags' AnyReader, `ros2 bag`,
 `kiss_icp_pipeline <out>`, evo (`evo_traj bag2 <out> /ground_truth/odom /riverbench/ekf/odom`), or
 Foxglove with docs/foxglove/riverbench_layout.json.
 
-A new sensor adds its topic to `topics`, its messages to `frame_messages` and its mount to `mounts`.
+A new sensor adds its topic to `topics`, its messages to `scan_messages` or `between_scans` and its mount to `mounts`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
@@ -51,6 +59,7 @@ CLOUD_TOPIC = "/velodyne_points"
 FIX_TOPIC = "/gps/fix"
 NMEA_TOPIC = "/nmea_sentence"
 EXTENDED_FIX_TOPIC = "/gps/extended_fix"
+REPORT_TOPIC = "/gps/report"
 STATIC_TF_TOPIC = "/tf_static"
 TRUTH_TOPIC = "/ground_truth/odom"
 TRUTH_TF_TOPIC = "/ground_truth/tf"
@@ -85,6 +94,7 @@ def topics(info: StreamInfo) -> list[Topic]:
         Topic(FIX_TOPIC, "sensor_msgs/msg/NavSatFix", volatile),
         Topic(NMEA_TOPIC, "nmea_msgs/msg/Sentence", volatile),
         Topic(EXTENDED_FIX_TOPIC, "gps_msgs/msg/GPSFix", volatile),
+        Topic(REPORT_TOPIC, msgs.GNSS_REPORT, volatile),
         Topic(STATIC_TF_TOPIC, "tf2_msgs/msg/TFMessage", offered(QosDurability.TRANSIENT_LOCAL)),
         Topic(TRUTH_TOPIC, "nav_msgs/msg/Odometry", volatile),
         Topic(TRUTH_TF_TOPIC, "tf2_msgs/msg/TFMessage", volatile),
@@ -121,7 +131,7 @@ def write(info: StreamInfo, frames: Iterable[Frame], out: Path, storage: Storage
     with Writer(bag, version=8, storage_plugin=storage) as writer:
         flush = streaming(writer, storage)
         connections = {t.name: writer.add_connection(t.name, t.msgtype, typestore=store, offered_qos_profiles=t.qos) for t in topics(info)}
-        for batch in chain([static_messages(store, info)], (frame_messages(store, info, frame) for frame in frames)):
+        for batch in chain([static_messages(store, info)], frame_batches(store, info, frames)):
             for topic, ns, msg in batch:
                 writer.write(connections[topic], ns, store.serialize_cdr(msg, msg.__msgtype__))
                 counts["messages"] += 1
@@ -154,26 +164,49 @@ def static_messages(store: Typestore, info: StreamInfo) -> list[tuple[str, int, 
     return [(STATIC_TF_TOPIC, ns, msgs.tf_message(store, transforms))]
 
 
-def frame_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
-    """The frame's messages in time order: its cloud, true pose and estimates at the scan's stamp, each fix and its
-    sentences at theirs."""
+def frame_batches(store: Typestore, info: StreamInfo, frames: Iterable[Frame]) -> Iterator[list[tuple[str, int, object]]]:
+    """The messages to write (and flush) as each frame comes, in time order: the previous frame's fixes and IMU samples,
+    stamped now that this scan's stamp is known (see fix_ns), then this frame's scan messages; the last frame's at the end."""
+    previous: Frame | None = None
+    for frame in frames:
+        yield (between_scans(store, info, previous, frame.stamp) if previous is not None else []) + scan_messages(store, info, frame)
+        previous = frame
+    if previous is not None and (rest := between_scans(store, info, previous, None)):
+        yield rest
+
+
+def scan_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:
+    """The frame's cloud, true pose and estimates at the scan's stamp."""
     ns = msgs.ros_ns(info.epoch_utc, frame.stamp)
     truth = msgs.transform(store, ns, msgs.MAP_FRAME, msgs.BASE_FRAME, frame.base_pose)
-    scan = [
+    return [
         (CLOUD_TOPIC, ns, msgs.point_cloud(store, ns, frame.scan)),
         (TRUTH_TOPIC, ns, msgs.odometry(store, ns, frame.base_pose, msgs.BASE_FRAME)),
         (TRUTH_TF_TOPIC, ns, msgs.tf_message(store, [truth])),
         *((estimate_topic(eid), ns, msgs.odometry(store, ns, e.pose, msgs.BASE_FRAME, e.cov)) for eid, e in frame.estimates.items()),
     ]
+
+
+def between_scans(store: Typestore, info: StreamInfo, frame: Frame, next_scan: float | None) -> list[tuple[str, int, object]]:
+    """The frame's fixes (NavSatFix, GPSFix, sentences, report) and IMU samples in time order, up to the next scan at `next_scan`."""
     gnss = []
     for fix in frame.fixes:
-        t = msgs.ros_ns(info.epoch_utc, fix.stamp)
+        t = fix_ns(info, fix.stamp, next_scan)
         gnss += [
             (FIX_TOPIC, t, msgs.nav_sat_fix(store, t, fix)),
             (EXTENDED_FIX_TOPIC, t, msgs.gps_fix(store, t, fix)),
             *((NMEA_TOPIC, t, s) for s in msgs.sentences(store, t, fix)),
+            (REPORT_TOPIC, t, msgs.gnss_report(store, t, fix)),
         ]
-    return sorted(scan + gnss + inertial_messages(store, info, frame), key=lambda message: message[1])
+    return sorted(gnss + inertial_messages(store, info, frame), key=lambda message: message[1])
+
+
+def fix_ns(info: StreamInfo, stamp: float, next_scan: float | None) -> int:
+    """A fix's ROS time: its stamp's, or 1 ns before the next scan's when it came before that scan but rounds to its stamp."""
+    ns = msgs.ros_ns(info.epoch_utc, stamp)
+    if next_scan is not None and stamp < next_scan and ns >= (scan_ns := msgs.ros_ns(info.epoch_utc, next_scan)):
+        return scan_ns - 1
+    return ns
 
 
 def inertial_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[tuple[str, int, object]]:

@@ -61,11 +61,12 @@ class Feed:
         base_pose: Callable[[float], np.ndarray],
         t_start: float,
         log_fix: Callable[[object], None] | None = None,
-        on_scan: Callable[[float], None] | None = None,
+        on_scan: Callable[[float, dict], None] | None = None,
         observer: RunObserver | None = None,
     ) -> None:
         """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
-        on_scan(stamp) once every estimator has a scan and before any later input (e.g. to read their poses and covariances);
+        on_scan(stamp, results) once every estimator has a scan and before any later input (e.g. to read their poses and
+        covariances), with the matchers' results of that scan by id;
         observer, when given, with each scan and fix as they are recorded (the live view)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
         self.log_fix, self.on_scan, self.observer = log_fix, on_scan, observer
@@ -180,7 +181,7 @@ class Feed:
         if self.observer is not None:
             self.observer.scan(event, truth, estimates)
         if self.on_scan is not None:
-            self.on_scan(event.stamp)
+            self.on_scan(event.stamp, results)
 
     def _fix(self, event) -> None:
         """One fix to every estimator, its verdicts into the record, then to log_fix and the observer."""

@@ -9,12 +9,13 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 
 
 class RunProgress:
-    """Context manager; `update(t, t_start, t_end, scans)` is the runner's progress callback."""
+    """Context manager; `update(t, t_start, t_end, scans)` is the runner's progress callback. The speed is the recording
+    or simulated time since the first update over the wall time since it (what was loaded or read before is not in it)."""
 
     def __init__(self, name: str, console: Console, quiet: bool = False) -> None:
         self.quiet = quiet
-        self._start = time.perf_counter()
         self._last = 0.0
+        self._first: tuple[float, float] | None = None  # (t, wall time) of the first update
         self._bar = Progress(
             TextColumn(f"[bold]{name}[/]"),
             BarColumn(),
@@ -32,17 +33,20 @@ class RunProgress:
 
     def update(self, t: float, t_start: float, t_end: float, scans: int) -> None:
         now = time.perf_counter()
+        if self._first is None:
+            self._first = (t, now)
         if now - self._last < 0.1 and t < t_end:
             return
         self._last = now
         done = t - t_start
-        speed = done / (now - self._start) if now > self._start else 0.0
+        digits = 1 if t_end - t_start < 100 else 0  # a real capture may last 1.5 s
+        speed = (t - self._first[0]) / (now - self._first[1]) if now > self._first[1] else 0.0
         self._bar.update(
             self._task,
             total=t_end - t_start,
             completed=done,
             scans=scans,
-            sim=f"{done:,.0f}/{t_end - t_start:,.0f} s",
+            sim=f"{done:,.{digits}f}/{t_end - t_start:,.{digits}f} s",
             speed=f"{speed:.1f}x real time",
         )
 

@@ -6,7 +6,8 @@ one-line error listing them); a bag without any is replayed on its GPS alone (GN
 the only nmea_msgs/msg/Sentence topic (the receiver's own sentences, with its satellites, C/N0 and
 dead-reckoning quality), else the only sensor_msgs/msg/NavSatFix topic, or the one `gps_topic`
 names (either type). With NMEA, the only NavSatFix topic and the only gps_msgs/msg/GPSFix topic, if
-any, refine its epochs (scenarios.replay.fixes). When the scenario feeds an estimator the IMU: the only
+any, refine its epochs (scenarios.replay.fixes), and a riverbench export's riverbench_msgs/msg/GnssReport
+gives them its DOPs and satellites unrounded (scenarios.replay.reports). When the scenario feeds an estimator the IMU: the only
 sensor_msgs/msg/Imu topic, or the one `imu_topic` names, read in base_link by its /tf_static mount
 (scenarios.replay.imu; a bag without an Imu topic replays without it). Every event is stamped with its message's header
 stamp (see scenarios.replay.recording for the time base and the ordering; scenarios.replay.clouds
@@ -23,10 +24,10 @@ from pathlib import Path
 
 from rosbags.highlevel import AnyReader
 
-from scenarios.export.ros_messages import typestore
+from scenarios.export.ros_messages import GNSS_REPORT, typestore
 from scenarios.pipeline.feed import BadScan
 from scenarios.pipeline.stream import ScanEvent
-from scenarios.replay import clouds, fixes
+from scenarios.replay import clouds, fixes, reports
 from scenarios.replay import imu as imu_module
 from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, LogStats, Place, RecordedFix, Recording, TimeOrder
 from sim.nmea.epochs import Line, Splitter, assemble
@@ -49,7 +50,7 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
         clouds_in_bag = lidar_topic is not None or CLOUD in types.values()
         lidar = pick(path, types, (CLOUD,), lidar_topic, "--lidar-topic") if clouds_in_bag else ""
         gps = pick(path, types, (SENTENCE,), gps_topic, "--gps-topic", fallback=(NAVSAT,))
-        refine = tuple(t for t in (sole(types, NAVSAT), sole(types, GPSFIX)) if t) if types[gps] == SENTENCE else ()
+        refine = tuple(t for t in (sole(types, NAVSAT), sole(types, GPSFIX), sole(types, GNSS_REPORT)) if t) if types[gps] == SENTENCE else ()
         if lidar and not reader.topics[lidar].msgcount:
             raise ValueError(f"{path}: topic {lidar} holds no point cloud")
         if not lidar and not reader.topics[gps].msgcount:
@@ -58,7 +59,7 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
         span = (geo.seconds(reader.start_time), geo.seconds(reader.end_time))
         kind = "rosbag2" if reader.is2 else "ROS 1 bag"
         imu = imu_mount(reader, path, types, place, imu_topic)
-    source = gps + (f" (positions and DOPs refined by {' and '.join(refine)})" if refine else "")
+    source = gps + (f" (positions, DOPs and satellites refined by {' and '.join(refine)})" if refine else "")
     stats = LogStats() if types[gps] == SENTENCE else None
     return Recording(
         path,
@@ -199,8 +200,8 @@ def scan_event(reader: AnyReader, msgtype: str, raw: bytes, topic: str, logged: 
 
 
 def add_epoch(order: TimeOrder, closed: list[Line] | None, precise: dict[int, dict[str, object]], geo: Geo, stats: LogStats | None) -> None:
-    """Queue a closed NMEA epoch's fix (stamped with its first sentence's header), refined by the NavSatFix and GPSFix stamped like
-    one of its sentences (older ones dropped)."""
+    """Queue a closed NMEA epoch's fix (stamped with its first sentence's header), refined by the NavSatFix, GPSFix and
+    GnssReport stamped like one of its sentences (older ones dropped)."""
     if closed is None:
         return
     stamps, lines = [line.tag for line in closed], [line.text for line in closed]
@@ -214,4 +215,6 @@ def add_epoch(order: TimeOrder, closed: list[Line] | None, precise: dict[int, di
     for ns in [ns for ns in precise if ns <= stamps[-1]]:
         del precise[ns]
     if fix is not None:
-        order.add(RecordedFix(stamp, fixes.refined(fix, match.get(NAVSAT), match.get(GPSFIX), geo), tuple(lines)))
+        fix = fixes.refined(fix, match.get(NAVSAT), match.get(GPSFIX), geo)
+        report = match.get(GNSS_REPORT)
+        order.add(RecordedFix(stamp, fix if report is None else reports.applied(fix, report, geo), tuple(lines)))

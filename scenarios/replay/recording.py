@@ -142,6 +142,8 @@ class Recording:
     events: Callable[[], Iterator[Event]] = field(repr=False)
     nmea: LogStats | None = field(default=None, repr=False)
     imu_source: str = ""
+    facts: dict = field(default_factory=dict)
+    """What the reader found that a report should state (a capture's sensor, clocks, revolutions, fixes in the file)."""
 
     @property
     def gnss_only(self) -> bool:

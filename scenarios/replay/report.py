@@ -99,9 +99,11 @@ def build(tree: dict, images: dict[str, str]) -> list:
 
 def header(tree: dict) -> list:
     """Title; what the scores mean (agreement with GPS, or accuracy against a reference); GNSS-only or not; what was replayed
-    through what, its time base and ENU origin, what reading its NMEA skipped, and how fast it ran."""
+    through what, its sensor, time base, clocks and ENU origin, what was dropped or skipped, how fast it ran, where matcher
+    odometry starts, and warnings."""
     run, rec = tree["run"], tree["run"]["recording"]
     lat, lon = rec["origin"][:2]
+    digits = ".2f" if (run["duration_s"] or 0) < 100 else ".1f"
     ref = tree.get("reference")
     if ref is None:
         scoring = (
@@ -122,24 +124,50 @@ def header(tree: dict) -> list:
                 "note",
             )
         )
-    nmea = [Text(f"NMEA: {rec['nmea']['summary']}", "meta")] if "nmea" in rec else []
     scans = f"{run['fixes']} GPS fixes (no scans)" if run.get("gnss_only") else f"{run['scans']} scans · {run['fixes']} GPS fixes"
-    return [
-        *blocks,
-        Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {rec['format']} · lidar: {rec['lidar'] or 'none'} · GPS: {rec['gps']}", "meta"),
+    what = f"{rec['format']} · lidar: {rec['lidar'] or 'none'} · GPS: {rec['gps']}"
+    blocks.append(Text(f"scenario {run['scenario']} ({run['scenario_hash']}) · {what}", "meta"))
+    if rec.get("sensor_note"):
+        blocks.append(Text(f"sensor: {rec['sensor_note']}", "meta"))
+    clocks = rec.get("clocks")
+    timeline = f" on the {clocks['timeline']}" if clocks else ""
+    blocks.append(
         Text(
-            f"time zero {rec['time_zero_utc']} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
-            f"t = {num(run['t_start'], '.1f')} … {num(run['t_end'], '.1f')} s",
+            f"time zero {rec['time_zero_utc']}{timeline} · ENU origin {lat:.6f}, {lon:.6f} ({rec['origin_from']}) · "
+            f"t = {num(run['t_start'], digits)} … {num(run['t_end'], digits)} s",
             "meta",
-        ),
-        *nmea,
+        )
+    )
+    if clocks:
+        pairs = (("capture − sensor", "capture_minus_sensor_s"), ("sensor − GNSS", "sensor_minus_gnss_s"), ("capture − GNSS", "capture_minus_gnss_s"))
+        offsets = [f"{name} {num(clocks[key], '+.3f')} s" for name, key in pairs if clocks.get(key) is not None]
+        measured = f" (GNSS offsets from {clocks['gnss_offsets_from']})" if clocks.get("gnss_offsets_from") else ""
+        blocks.append(Text(f"clocks: {', '.join(offsets)}{measured}; PPS {clocks['pps']}", "meta"))
+    if "revolutions" in rec:
+        blocks.append(
+            Text(
+                f"{rec['revolutions']} whole revolutions replayed, {rec['partial_revolutions_dropped']} partial ones dropped · "
+                f"{run['fixes']} of the {rec['fixes_in_file']} GPRMC fixes in the file read",
+                "meta",
+            )
+        )
+    if "nmea" in rec:
+        blocks.append(Text(f"NMEA: {rec['nmea']['summary']}", "meta"))
+    blocks.append(
         Text(
-            f"{num(run['duration_s'], '.1f')} s of recording in {num(run['wall_s'], '.1f')} s "
-            f"({num(run['realtime_factor'], '.1f')}× real time) · {scans} · "
-            f"peak memory {num(run['peak_rss_mb'], '.0f')} MB",
+            f"{num(run['duration_s'], digits)} s of recording in {num(run['wall_s'], '.1f')} s "
+            f"({num(run['realtime_factor'], '.1f')}× real time; opening it took {num(run.get('read_s'), '.1f')} s, starting "
+            f"{run['workers']} process(es) {num(run.get('startup_s'), '.1f')} s) · {scans} · peak memory {num(run['peak_rss_mb'], '.0f')} MB",
             "meta",
-        ),
-    ]
+        )
+    )
+    anchor = run.get("anchor")
+    if anchor and not run.get("gnss_only"):
+        heading = {"estimate": "its heading", "course over ground": "its course over ground", "none": "no heading known: its position only"}
+        where = f"{anchor['estimator']} at t = {num(anchor['t'], digits)} s"
+        blocks.append(Text(f"matcher odometry laid on {where} ({heading[anchor['heading']]})", "meta"))
+    blocks += [Text(f"warning: {warning}", "meta") for warning in run.get("warnings", [])]
+    return blocks
 
 
 def labels(nodes: dict[str, dict]) -> dict[str, str]:

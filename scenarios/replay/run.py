@@ -1,6 +1,6 @@
 """`replay(recording, scenario, out_dir)`: a scenario's matchers and estimators over a real recording, no truth.
 
-The recording (a rosbag2 or ROS 1 bag, a Velodyne HDL-32E pcap, or an NMEA log; `nmea`: an NMEA
+The recording (a rosbag2 or ROS 1 bag, a Velodyne pcap, or an NMEA log; `nmea`: an NMEA
 log whose fixes replace a capture's or bag's own GPS) gives the scans and fixes in time order;
 scenarios.pipeline.feed runs them through the scenario's matchers and estimators with the calls
 of a simulated run. A recording without LiDAR (an NMEA log alone, a bag of NMEA sentences or
@@ -9,9 +9,9 @@ their poses are sampled right after each fix (a scan of no points that no matche
 directory has no matcher files and metrics.json says `run.gnss_only`. Everything the scenario says about the world and the sensors' simulation is
 unused, except the world's geodetic origin (the ENU frame), the GNSS epoch (the time base) and the
 boat's configuration (lidar mount, antenna offset). Matcher odometry is chained from identity at
-the first scan, then moved as a whole onto the first pose any estimator reports (at that scan or
-the matcher's first after it); without any estimate it stays chained from identity at the
-world origin. The run directory is written under a hidden name and renamed when complete:
+the first scan, then moved as a whole onto the first estimate that has a heading (at that scan or
+the matcher's first after it; scenarios.replay.anchor), recorded in metrics.json as run.anchor;
+without any estimate it stays chained from identity at the world origin. The run directory is written under a hidden name and renamed when complete:
 
     scenario.toml  metrics.json (scenarios.replay.metrics)  <id>.tum per estimator and matcher (UNIX time: the
                    recording's own clock; at the waterline, as scenarios.pipeline.files writes a run's)
@@ -21,7 +21,6 @@ world origin. The run directory is written under a hidden name and renamed when 
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
@@ -45,19 +44,15 @@ from scenarios.pipeline.assembly import recorder as make_recorder
 from scenarios.pipeline.feed import Feed, nmea_writer
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import ScanEvent
-from scenarios.replay import bag, nmea_log, pcap
+from scenarios.replay import anchor, bag, capture, gates, nmea_log, pcap
 from scenarios.replay import metrics as replay_metrics
 from scenarios.replay import reference as reference_module
 from scenarios.replay.recording import Event, Place, RecordedFix, Recording
 from scenarios.replay.reference import Reference
 from scenarios.score import metrics as run_metrics
 from scenarios.score import units
-from scenarios.score.record import RunRecord
 from scenarios.spec.scenario import Scenario
 from sim.scan import Scan
-
-PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1", b"\xa1\xb2\xc3\xd4", b"\x4d\x3c\xb2\xa1", b"\xa1\xb2\x3c\x4d"}
-"""libpcap file magic numbers (microsecond and nanosecond, either byte order)."""
 
 
 @dataclass
@@ -102,7 +97,9 @@ def replay(
     check_out(out, directory=True)
     world = worlds.load(scenario.world, **scenario.world_params)
     place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg, imu_noise(scenario))
+    read_start = time.perf_counter()
     opened = open_recording(path, place, lidar_topic, gps_topic, imu_topic)
+    read_s = time.perf_counter() - read_start
     if nmea is not None:
         if opened.gnss_only:
             raise ValueError(f"{path}: --nmea gives the GPS of a recording with LiDAR; this one has none (replay the NMEA log alone)")
@@ -112,7 +109,7 @@ def replay(
         ref = reference_module.read(reference, opened.geo, place)
         ref.overlap(opened)
     with staged_dir(out) as tmp:
-        tree = replay_into(scenario, opened, tmp, workers, progress, ref)
+        tree = replay_into(scenario, opened, tmp, workers, progress, ref, read_s)
         if report:
             from scenarios.replay import report as report_module
 
@@ -131,7 +128,7 @@ def imu_noise(scenario: Scenario) -> tuple[float, float] | None:
 def open_recording(path: Path, place: Place, lidar_topic: str | None, gps_topic: str | None, imu_topic: str | None = None) -> Recording:
     """The recording at `path`: a capture by its name or its libpcap magic number, an NMEA log (scenarios.replay.nmea_log.is_log),
     else a bag."""
-    if path.suffix.lower() in (".pcap", ".pcapng") or (path.is_file() and magic(path) in PCAP_MAGIC):
+    if path.suffix.lower() in (".pcap", ".pcapng") or (path.is_file() and capture.is_capture(path)):
         if lidar_topic or gps_topic or imu_topic:
             raise ValueError(f"{path}: a pcap has no topics (--lidar-topic, --gps-topic and --imu-topic are for bags)")
         return pcap.read(path, place)
@@ -140,12 +137,6 @@ def open_recording(path: Path, place: Place, lidar_topic: str | None, gps_topic:
             raise ValueError(f"{path}: an NMEA log has no topics (--lidar-topic, --gps-topic and --imu-topic are for bags)")
         return nmea_log.read(path, place)
     return bag.read(path, place, lidar_topic, gps_topic, imu_topic)
-
-
-def magic(path: Path) -> bytes:
-    """The file's first four bytes."""
-    with path.open("rb") as handle:
-        return handle.read(4)
 
 
 def without_matchers(scenario: Scenario) -> Scenario:
@@ -161,17 +152,30 @@ def pose_samples(events: Iterator[Event]) -> Iterator[Event]:
             yield ScanEvent(event.stamp, Scan.empty(event.stamp))
 
 
-def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress, ref: Reference | None = None) -> dict:
+def replay_into(
+    scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress, ref: Reference | None = None, read_s: float = 0.0
+) -> dict:
     """Stream the recording through the matchers and estimators and write the run directory's data files into `tmp`
-    (scored against the reference `ref` when there is one)."""
-    wall_start = time.perf_counter()
+    (scored against the reference `ref` when there is one). wall_s (and the realtime factor) is the streaming's, from the
+    matcher processes being ready to the files written; opening the recording (read_s: a pcap's first pass) and starting
+    the processes (startup_s) are stated apart."""
+    startup = time.perf_counter()
     fed = without_matchers(scenario) if recording.gnss_only else scenario
     recorder = make_recorder(fed)
     setups = matcher_setups(fed)
     start = np.eye(4)
     events = pose_samples(recording.events()) if recording.gnss_only else recording.events()
+    headings, refusals = anchor.HeadingLog([e.id for e in fed.estimators]), gates.RefusalTally(fed)
+
+    def on_scan(stamp: float, results: dict) -> None:
+        headings(stamp)
+        refusals(stamp, results)
+
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        feed = Feed(fed, pool, recorder, lambda stamp: start, recording.t_start, nmea_writer(nmea, lambda event: list(event.sentences)))
+        wall_start = time.perf_counter()
+        log = nmea_writer(nmea, lambda event: list(event.sentences))
+        feed = Feed(fed, pool, recorder, lambda stamp: start, recording.t_start, log, on_scan=on_scan)
+        headings.sd_of = lambda eid: anchor.yaw_sd_deg(feed.cov_of(eid))
         feed.drive(
             events,
             lambda event: (
@@ -184,7 +188,9 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         workers_rss, lanes = pool.workers_rss_mb, pool.lanes
     if not (tmp / "gps.nmea").stat().st_size:
         (tmp / "gps.nmea").unlink()
-    rec = anchored(recorder.finish([]), [e.id for e in fed.estimators])
+    rec = recorder.finish([])
+    start_pose = anchor.choose(rec, headings)
+    rec = anchor.anchored(rec, start_pose)
     wall = time.perf_counter() - wall_start
     geo = recording.geo
     run_info = {
@@ -200,6 +206,7 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
             "origin": list(geo.origin),
             "origin_from": geo.origin_source,
             **({"nmea": {**recording.nmea.tree(), "summary": recording.nmea.summary()}} if recording.nmea is not None else {}),
+            **recording.facts,
         },
         "gnss_only": recording.gnss_only,
         "t_start": recording.t_start,
@@ -207,6 +214,8 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         "duration_s": recording.t_end - recording.t_start,
         "wall_s": wall,
         "realtime_factor": (recording.t_end - recording.t_start) / wall if wall > 0 else math.nan,
+        "read_s": read_s,
+        "startup_s": wall_start - startup,
         "peak_rss_mb": peak_rss_mb() + workers_rss,
         "scans": 0 if recording.gnss_only else len(rec.scan_t),
         **({"pose_samples": len(rec.scan_t)} if recording.gnss_only else {}),
@@ -214,6 +223,8 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         "workers": len(lanes),
         "lanes": lanes,
         "failures": rec.failures,
+        "warnings": refusals.warnings(),
+        "anchor": start_pose.describe(float(rec.scan_t[start_pose.index])) if start_pose is not None else None,
     }
     antenna = np.asarray(scenario.gnss.antenna_offset_m, dtype=float)
     tree = replay_metrics.compute(rec, run_info, antenna)
@@ -236,23 +247,3 @@ def replay_into(scenario: Scenario, recording: Recording, tmp: Path, workers: in
         files.write_tum(tmp / f"{mid}.tum", rec.scan_t, files.waterline(track.pose), geo.zero_ns)
     files.write_gps_csv(tmp / "gps.csv", rec, truth=False)
     return tree
-
-
-def anchored(rec: RunRecord, estimator_ids: list[str]) -> RunRecord:
-    """The record with each matcher's odometry (chained from identity) moved onto the first estimate (see the module docstring)."""
-    first = {eid: np.flatnonzero(np.isfinite(rec.estimates[eid]).all(axis=(1, 2))) for eid in estimator_ids}
-    ready = [(index[0], order, eid) for order, (eid, index) in enumerate(first.items()) if len(index)]
-    if not ready:
-        return rec
-    start, _, eid = min(ready)
-    estimate = rec.estimates[eid]
-    matches = {}
-    for mid, track in rec.matches.items():
-        usable = np.isfinite(track.pose).all(axis=(1, 2)) & np.isfinite(estimate).all(axis=(1, 2))
-        usable[:start] = False
-        if not usable.any():
-            matches[mid] = track
-            continue
-        k = int(np.argmax(usable))
-        matches[mid] = dataclasses.replace(track, pose=estimate[k] @ np.linalg.inv(track.pose[k]) @ track.pose)
-    return dataclasses.replace(rec, matches=matches)

@@ -1,0 +1,70 @@
+"""Real Velodyne captures replayed with a scenario's default stack (gicp and four estimators): per capture the sensor
+found, whole revolutions kept and partial ones dropped, the matcher's success, the fixes read against those in the
+file, the clock offsets measured, and the realtime factor (capture duration / wall time, median over rounds) with
+1 and 2 processes.
+
+    .venv/bin/python benchmarks/replay_real.py [PCAP ...] [--scenario quickstart] [--rounds 3]
+
+Default captures: tests/data/pcap/*.pcap (prefixes of VeloView's; the whole files are in VeloView's repository,
+see tests/data/pcap/NOTICE).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import scenarios
+from scenarios.replay import replay
+
+DATA = Path(__file__).resolve().parent.parent / "tests" / "data" / "pcap"
+
+
+def main() -> None:
+    """Replay each capture `rounds` times with 1 and 2 processes and print one row per capture."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("pcaps", nargs="*", type=Path, default=sorted(DATA.glob("*.pcap")))
+    parser.add_argument("--scenario", default="quickstart")
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args()
+    scenario = scenarios.load(args.scenario)
+    print(f"scenario {args.scenario} (default stack); realtime factor = capture duration / wall time, median of {args.rounds}")
+    head = ["capture", "sensor", "s", "scans", "dropped", "gicp ok", "fixes", "capture-sensor", "sensor-GNSS", "capture-GNSS", "1 proc", "2 proc"]
+    print(" | ".join(head))
+    with tempfile.TemporaryDirectory(prefix="riverbench-real-") as root:
+        for path in args.pcaps:
+            factors: dict[int, list[float]] = {1: [], 2: []}
+            for workers in (1, 2):
+                for k in range(args.rounds):
+                    out = Path(root) / f"{path.stem}-{workers}-{k}"
+                    result = replay(path, scenario, out, workers=workers, report=False)
+                    factors[workers].append(result.metrics["run"]["realtime_factor"])
+                    shutil.rmtree(out)
+            run, rec = result.metrics["run"], result.metrics["run"]["recording"]
+            clocks = rec["clocks"]
+            row = [
+                path.name,
+                rec["sensor"] + (" (bytes disagree)" if rec["sensor_note"] else ""),
+                f"{run['duration_s']:.2f}",
+                str(run["scans"]),
+                str(rec["partial_revolutions_dropped"]),
+                f"{result.metrics['matchers']['gicp']['success']:.2f}",
+                f"{run['fixes']}/{rec['fixes_in_file']}",
+                *(offset(clocks[key]) for key in ("capture_minus_sensor_s", "sensor_minus_gnss_s", "capture_minus_gnss_s")),
+                f"{np.median(factors[1]):.2f}x",
+                f"{np.median(factors[2]):.2f}x",
+            ]
+            print(" | ".join(row))
+
+
+def offset(value: float | None) -> str:
+    """A clock offset as printed (None: not measured)."""
+    return "-" if value is None else f"{value:+.3f} s"
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,104 @@
+"""A simulated run exported to a bag (rosbag2 or MCAP) and replayed through the same scenario gives every fix the same
+verdict and every estimator the same estimate (to 1e-6 m), on the same stamps (to the nanosecond), and every matcher
+the same odometry: each open-loop library scenario's [fast] stretch (slow tier), and in the default tier open_river's
+first 1.5 s, where the run takes a fix before a scan whose stamp rounds to the same nanosecond (3/5 < 6 * 0.1).
+
+The runs' records are compared in full precision: they are taken where both write gps.csv."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+
+import scenarios
+from scenarios.export import export
+from scenarios.export.ros_messages import ros_ns, typestore
+from scenarios.pipeline import files
+from scenarios.replay import replay
+from scenarios.score.record import RunRecord
+
+OPEN_LOOP = [name for name in scenarios.available() if scenarios.load(name).control.mode == "open_loop"]
+ESTIMATE_M = 1e-6
+OFF_THE_NS_GRID = {"bu_truss_bridge", "canal_multipath", "open_river", "rough_water"}
+"""Scenarios whose replay is not yet exact: the run's stamps are floats off the nanosecond grid a bag carries (t_start from
+a root finder plus k * 0.1 s), so the replay's stamps differ from them by up to 0.5 ns, and the particle filter's
+resampling and gicp's thresholds turn that into different estimates (up to 5 m; every verdict still the same). Measured:
+with the run's scan and fix times rounded to the nanosecond these replay exactly (4.5e-9 m), but that moves their metrics."""
+
+
+def records(monkeypatch) -> list[RunRecord]:
+    """The RunRecord of each run or replay from here on, in order (taken where it writes its gps.csv)."""
+    taken: list[RunRecord] = []
+    write = files.write_gps_csv
+
+    def take(path, rec, *args, **kwargs):
+        taken.append(rec)
+        return write(path, rec, *args, **kwargs)
+
+    monkeypatch.setattr(files, "write_gps_csv", take)
+    return taken
+
+
+def round_trip(scenario, fmt: str, root, monkeypatch) -> tuple[RunRecord, RunRecord]:
+    """(the run's record, its replay's record) through an export as `fmt`."""
+    taken = records(monkeypatch)
+    run = scenarios.run(scenario, root / "run", workers=1, report=False)
+    export(run.out_dir, fmt, root / "bag")
+    replay(root / "bag", scenario, root / "replay", workers=1, report=False)
+    return taken[0], taken[1]
+
+
+def odometry(poses: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """The usable poses relative to the first usable one (a matcher's odometry, whatever it was laid on)."""
+    return np.linalg.inv(poses[usable][0]) @ poses[usable]
+
+
+def assert_same(run: RunRecord, again: RunRecord) -> None:
+    """The replay's record is the run's: stamps, verdicts, statistics, estimates and odometry."""
+    np.testing.assert_allclose(again.scan_t, run.scan_t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(again.fixes.t, run.fixes.t, rtol=0, atol=2e-9)  # a fix kept before its scan: 1 ns earlier
+    np.testing.assert_array_equal(again.fixes.quality, run.fixes.quality)
+    for eid in run.estimates:
+        np.testing.assert_array_equal(again.fixes.trusted[eid], run.fixes.trusted[eid], err_msg=eid)
+        np.testing.assert_allclose(again.fixes.statistic[eid], run.fixes.statistic[eid], rtol=1e-9, atol=1e-9, err_msg=eid)
+        finite = np.isfinite(run.estimates[eid]).all(axis=(1, 2))
+        np.testing.assert_array_equal(np.isfinite(again.estimates[eid]).all(axis=(1, 2)), finite, err_msg=eid)
+        np.testing.assert_allclose(again.estimates[eid][finite], run.estimates[eid][finite], rtol=0, atol=ESTIMATE_M, err_msg=eid)
+    for mid, track in run.matches.items():
+        np.testing.assert_array_equal(again.matches[mid].ok, track.ok, err_msg=mid)
+        usable = np.isfinite(track.pose).all(axis=(1, 2))
+        np.testing.assert_array_equal(np.isfinite(again.matches[mid].pose).all(axis=(1, 2)), usable, err_msg=mid)
+        if usable.any():
+            np.testing.assert_allclose(odometry(again.matches[mid].pose, usable), odometry(track.pose, usable), rtol=0, atol=ESTIMATE_M)
+
+
+def test_the_runs_order_of_fixes_and_scans_survives_the_bag(tmp_path, monkeypatch):
+    scenario = scenarios.load("open_river", set=["stretch={start_s = 0.0, end_s = 1.5}"])
+    run, again = round_trip(scenario, "rosbag2", tmp_path, monkeypatch)
+    assert len(run.scan_t) == 15 and len(run.fixes.t) == 8 and run.fixes.t[3] < run.scan_t[6]  # 3/5 < 6 * 0.1
+    with AnyReader([tmp_path / "bag"], default_typestore=typestore()) as reader:
+        stamps = [t for c, t, _ in reader.messages() if c.topic == "/gps/fix"]
+    epoch = ros_ns(scenario.gnss.epoch_utc, 0.0)
+    assert stamps[3] == epoch + 599_999_999 and stamps[2] == epoch + 400_000_000  # kept before the scan at 600000000 ns
+    assert_same(run, again)
+    # gps_only at the 0.6 s scan already holds the 0.6 s fix (not the 0.4 s one it held at 0.5 s), in the replay as in the run
+    gps_only = run.estimates["gps_only"]
+    assert np.linalg.norm(gps_only[6][:3, 3] - gps_only[5][:3, 3]) > 0.1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(name, marks=pytest.mark.xfail(strict=True, reason="the run's stamps are off the nanosecond grid (OFF_THE_NS_GRID)"))
+        if name in OFF_THE_NS_GRID
+        else name
+        for name in OPEN_LOOP
+    ],
+)
+def test_a_library_run_exported_and_replayed_gives_every_verdict_and_estimate_again(name, tmp_path, monkeypatch):
+    fmt = ("rosbag2", "mcap")[OPEN_LOOP.index(name) % 2]
+    run, again = round_trip(scenarios.load(name).fast_variant(), fmt, tmp_path, monkeypatch)
+    assert len(run.fixes.t) > 100 and any(np.isfinite(p).all(axis=(1, 2)).any() for eid, p in run.estimates.items() if eid != "gps_only")
+    assert_same(run, again)

@@ -7,7 +7,10 @@ the monitor never sees these constants, it learns them from the fixes.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,10 +18,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import fusion
+import scenarios
 from fusion import monitors
 from fusion.monitors import FixContext
 from fusion.observation import screen
 from fusion.odometry import OdometryTrack
+from scenarios.pipeline.assembly import assemble
+from scenarios.replay import nmea_log
 from sim.gnss_fix import GnssFix, SatelliteReport
 
 HORIZON_DBHZ, ZENITH_DBHZ, JITTER_DB, NLOS_LOSS_DB = 35.0, 50.0, 1.0, 8.0
@@ -309,3 +315,100 @@ def test_a_receiver_profile_judges_from_the_first_fix():
     snr[3] -= NLOS_LOSS_DB
     verdict = feed(mon, make_fix(10.0, el, snr))
     assert not verdict.trusted and "PRN 4" in verdict.reason
+
+
+# ------------------------------------------------------------------------- satellites whose direct signals differ
+
+ZEUS = Path(__file__).parent / "data" / "nmea" / "gpsd" / "bundg_zeus_9.log"
+"""A B&G Zeus2 9 chartplotter on a boat in open water on the IJsselmeer (gpsd's test log): GPS + GLONASS at 1 Hz."""
+
+
+def zeus_observations():
+    """The log's fixes as an estimator screens them (measured positions only)."""
+    recording = nmea_log.read(ZEUS, nmea_log.Place((0.0, 0.0, 0.0), datetime(2018, 8, 20, tzinfo=UTC)))
+    return [obs for obs in (screen(event.fix, 3.0, False)[0] for event in recording.events()) if obs is not None]
+
+
+def test_a_real_boats_open_water_fixes_are_trusted():
+    # its direct signals differ between satellites by up to 20 dB at one elevation (PRN 29 at 11 deg: 46 dB-Hz, PRN 8 at
+    # 12 deg: 24-35) and each stays at its own level: before the spread between satellites was measured, 18 % were trusted
+    obs = zeus_observations()
+    assert len(obs) > 140
+    online = monitors.create("cn0")
+    verdicts = []
+    for o in obs:
+        verdicts.append(online.check(o, CTX))
+        online.commit(o, verdicts[-1])
+    assert sum(math.isfinite(v.statistic) for v in verdicts) > 120
+    assert np.mean([v.trusted for v in verdicts]) >= 0.95
+    learned = monitors.create("cn0")
+    for o in obs:
+        learned.calibrate(o)
+    assert np.mean([learned.check(o, CTX).trusted for o in obs]) >= 0.95
+    # it still judges: a used satellite far below what this receiver's direct signals give is flagged and named
+    expected, sigma = learned.template(74.0)
+    assert 1.65 < sigma < 10.0  # wider than the jitter of one satellite (1.65 dB), the spread between them
+    last = obs[-1]
+    weak = tuple(
+        s if s.prn != 16 or s.system != "GPS" else SatelliteReport(16, s.az_deg, s.el_deg, float(expected) - (learned.gate + 1) * sigma, True)
+        for s in last.sats
+    )
+    verdict = learned.check(dataclasses.replace(last, sats=weak), CTX)
+    assert not verdict.trusted and "PRN 16" in verdict.reason
+
+
+def persistent_sky(rng, n: int, levels_db, nlos_from: int | None = None):
+    """n epochs at 1 Hz of satellites that keep their number, elevation (drifting slowly) and their own C/N0 level
+    (levels_db) about one template with 1 dB jitter; from epoch nlos_from, PRN 3 is received by reflection only."""
+    el0 = np.linspace(8.0, 80.0, len(levels_db))
+    out = []
+    for k in range(n):
+        el = el0 + 0.01 * k
+        snr = direct_cn0(el, rng) + np.asarray(levels_db)
+        if nlos_from is not None and k >= nlos_from:
+            snr[2] -= NLOS_LOSS_DB
+        out.append(make_fix(float(k), el, snr))
+    return out
+
+
+def test_satellites_at_their_own_levels_widen_sigma_to_their_spread():
+    rng = np.random.default_rng(15)
+    levels = rng.normal(0.0, 4.0, 12)  # persistent differences between satellites, 4 dB, as on a small boat
+    mon = monitors.create("cn0")
+    verdicts = [feed(mon, fix) for fix in persistent_sky(rng, 300, levels)]
+    assert np.mean([v.trusted for v in verdicts]) > 0.99
+    assert 3.0 < mon.template(30.0)[1] < 6.0
+    bins_only = monitors.create("cn0", satellite_levels=False)
+    assert np.mean([feed(bins_only, fix).trusted for fix in persistent_sky(np.random.default_rng(15), 300, levels)]) < 0.5
+
+
+def test_a_sky_whose_satellites_share_one_level_is_judged_by_the_bins_alone():
+    """Satellites that keep their identity but share the template (as the simulator's do): the same verdicts, to the
+    last bit, as a monitor that never looks at satellites' levels, an NLOS satellite still flagged."""
+    rng_a, rng_b = np.random.default_rng(16), np.random.default_rng(16)
+    a, b = monitors.create("cn0"), monitors.create("cn0", satellite_levels=False)
+    fa, fb = persistent_sky(rng_a, 300, np.zeros(10), nlos_from=200), persistent_sky(rng_b, 300, np.zeros(10), nlos_from=200)
+    va, vb = [feed(a, f) for f in fa], [feed(b, f) for f in fb]
+    assert [(v.trusted, v.reason) for v in va] == [(v.trusted, v.reason) for v in vb]
+    assert all(x.statistic == y.statistic or (math.isnan(x.statistic) and math.isnan(y.statistic)) for x, y in zip(va, vb))
+    assert not any(v.trusted for v in va[200:])
+
+
+def test_the_simulators_verdicts_on_the_canal_are_the_bins_ones():
+    """The library's canal_multipath stretch (the simulator's GPS L1 C/A receiver between walls that make a third of its
+    fixes NLOS): the same verdicts, to the last bit, with and without the satellites' levels; NLOS fixes flagged."""
+    run = assemble(scenarios.load("canal_multipath"))
+    a, b = monitors.create("cn0"), monitors.create("cn0", satellite_levels=False)
+    flagged = 0
+    for t in run.receiver.epochs(run.t_end, run.t_start):
+        obs = screen(run.receiver.fix(run.vessel_run.world, run.trajectory, float(t)), 3.0, False)[0]
+        if obs is None:
+            continue
+        va, vb = a.check(obs, CTX), b.check(obs, CTX)
+        a.commit(obs, va), b.commit(obs, vb)
+        assert (va.trusted, va.reason) == (vb.trusted, vb.reason)
+        assert va.statistic == vb.statistic or (math.isnan(va.statistic) and math.isnan(vb.statistic))
+        flagged += not va.trusted
+    assert flagged > 100 and a.between_satellites is not None
+    spread, switch = a.between_satellites
+    assert spread < switch

@@ -40,6 +40,38 @@ gap of its residuals' `mid_q` and `high_q` quantiles, pooled over all its satell
 holds the spread between them; never below the template's sigma). The template is learned from
 every signal's reports less their offsets. A receiver that reports GPS L1 C/A only (the
 simulator) never uses an offset: its template, jitter and verdicts are the single-template ones.
+
+Between satellites: direct signals do not all sit on one line. Satellites transmit at different
+powers (GPS L1 C/A differs by a few dB between satellite blocks: Steigenberger, Thoelert and
+Montenbruck 2018, J. Geodesy 92:609-624); a small antenna's gain varies with azimuth as well as
+elevation; on a vessel the superstructure (mast, sails, cabin, crew) shadows parts of the sky; and
+at low elevation the direct signal interferes with its reflection off the water, so its C/N0 moves
+between 20 log10(1 + a) and 20 log10(1 - a) (a: the reflection's amplitude relative to the direct
+one; a = 0.7 gives +4.6 to -10.5 dB) as the geometry and the antenna's height over the water change
+(Bilich and Larson 2007, Radio Science 42, RS6003; Larson, Loefgren and Haas 2013, Adv. Space Res.
+51:1301-1310). These last for minutes, so within one satellite's reports they are a level and its
+fades, not jitter, and they lower C/N0 more often than they raise it: C/N0 separates reflected
+from direct signals only statistically, at levels specific to the receiver, antenna and
+installation (Groves, Jiang, Rudi and Strode 2013, ION GNSS+ 2013, 3231-3247; Strode and Groves
+2016, GPS Solutions 20:399-412). When many satellites have passed through each bin (a long run, or
+the simulator, whose satellites share one C/N0 model) the bins' quantiles hold this spread; when a
+bin holds one or two satellites (a short log, a receiver at 1 Hz) they measure one satellite's
+jitter, and ordinary direct signals look NLOS (a B&G Zeus2 chartplotter in open water on the
+IJsselmeer, tests/data/nmea/gpsd/bundg_zeus_9.log: GPS PRN 29 at 11 deg elevation gives 46 dB-Hz,
+PRN 8 at 12 deg 24-35 dB-Hz, each nearly constant over the log). So each satellite (system, signal
+and number) also gets a level, the `mid_q` quantile of its buffered reports about the template
+less its signal's offset (its direct level: like a bin's, the upper part of its reports, which
+reflection, shadowing and fades only lower), once it holds `min_samples_per_satellite` of them.
+When the levels' spread (the normal-consistent median absolute deviation, robust while fewer than
+half of the satellites are NLOS throughout their buffered reports) exceeds the bins' sigma by more
+than its own sampling error (`levels_z` standard errors), the bins see too few satellites, and
+sigma becomes the same robust spread of all buffered reports with each satellite weighted equally,
+which holds both the differences between satellites and each one's fades (never below the bins'
+sigma). A sky whose direct signals share one level, as the simulator's do, does not switch: its
+sigma, template and verdicts are the bins' ones (benchmarks/cn0_satellites.py compares them on the
+library's simulated fixes). The price: where more than half of the tracked satellites have been
+NLOS for as long as the buffers remember (minutes in a deep street canyon), their levels look like
+spread between direct signals, sigma widens and fewer NLOS fixes are flagged.
 """
 
 from __future__ import annotations
@@ -57,6 +89,12 @@ from fusion.verdict import Verdict
 
 REFERENCE = "GPS L1 C/A"
 """The signal every offset is relative to (the simulator's only one)."""
+MAD_TO_SIGMA = float(1.0 / norm.ppf(0.75))
+"""The median absolute deviation of normal samples times this is their standard deviation (1.4826)."""
+MAD_RELATIVE_SE = math.sqrt(1.0 / (2.0 * 0.3675))
+"""Standard error of that standard deviation from n normal samples, times sqrt(n), over the standard deviation (1.166): the
+median absolute deviation's asymptotic efficiency at the normal is 36.75 % (Rousseeuw and Croux 1993, JASA 88:1273-1283),
+the sample standard deviation's variance sigma^2 / (2 n)."""
 PRIOR_OFFSETS_DB = {
     "GPS L1 C/A": 0.0,
     "GPS L2C-M": -1.5,
@@ -136,6 +174,31 @@ class Cn0Params(BaseModel):
     min_samples_per_signal: int = Field(
         40, ge=5, description="reports of a signal buffered before its offset is learned [40: as a template bin's min_samples_per_bin]"
     )
+    satellite_levels: bool = Field(
+        True,
+        description="measure how direct signals differ between satellites from each one's level (module docstring) [True; "
+        "False: the bins' sigma alone, as before the spread between satellites was measured]",
+    )
+    min_samples_per_satellite: int = Field(
+        10,
+        ge=2,
+        description="a satellite's level (the mid_q quantile of its buffered reports about the template) counts once it "
+        "holds this many [10: the 0.75 quantile of 10 normal reports scatters by 0.43 of their jitter (sqrt(0.75 * 0.25) / "
+        "(phi(0.674) sqrt(10))), below the jitter its levels' spread is compared with; levels_z allows for it]",
+    )
+    min_satellites: int = Field(
+        4,
+        ge=3,
+        description="satellites with a level needed to measure the spread between satellites [4: what a fix needs; "
+        "fewer give no median absolute deviation worth the name]",
+    )
+    levels_z: float = Field(
+        2.0,
+        ge=0,
+        description="the satellites' levels count as spread between satellites once their spread exceeds the bins' sigma "
+        "by this many of its standard errors (MAD_RELATIVE_SE / sqrt(satellites)) [2: a one-sided test at 2.3 %; the "
+        "levels of a handful of satellites that share one level scatter by chance]",
+    )
     profile_template: tuple[float, float, float] | None = Field(
         None,
         description="a receiver profile: [C/N0 at the horizon (dB-Hz), its rise to the zenith (dB-Hz per unit sin(elevation)), "
@@ -172,6 +235,9 @@ class Cn0Monitor(Monitor):
         self._cn0 = np.full((p.bins, p.samples_per_bin), np.nan)
         self._count = np.zeros(p.bins, dtype=np.int64)  # samples ever added per bin
         self._group = np.full((p.bins, p.samples_per_bin), -1, dtype=np.int64)  # signal index of each sample
+        self._sat = np.full((p.bins, p.samples_per_bin), -1, dtype=np.int64)  # satellite index of each sample
+        self._satellites: dict[tuple[str, str, int], int] = {}  # (system, signal, number) -> satellite index
+        self._between: tuple[float, float] | None = None  # the satellites' levels' spread and the sigma it must exceed (dB)
         self._signals: dict[str, int] = {REFERENCE: 0}  # signal name -> index; offsets by index
         self._offset = np.zeros(1)  # dB from the template, per signal index (priors until learned)
         self._spread = np.full(1, np.nan)  # learned jitter sigma per signal index (dB); the template's for GPS L1 C/A
@@ -191,6 +257,12 @@ class Cn0Monitor(Monitor):
             return None
         return a + b * np.sin(np.deg2rad(np.asarray(el_deg, dtype=float))), sigma
 
+    @property
+    def between_satellites(self) -> tuple[float, float] | None:
+        """At the last fit: the spread of the satellites' levels and what it had to exceed to widen sigma (dB), or None (not
+        measured: too few satellites with a level, or satellite_levels off)."""
+        return self._between
+
     def offsets(self) -> dict[str, float]:
         """Each signal's current offset from the template (dB), learned or prior."""
         return {name: float(self._offset[k]) for name, k in self._signals.items()}
@@ -205,6 +277,11 @@ class Cn0Monitor(Monitor):
             self._offset = np.append(self._offset, self.params.offsets_db.get(name, 0.0))
             self._spread = np.append(self._spread, np.nan)
         return self._signals[name]
+
+    def _satellite(self, sat) -> int:
+        """The index of a satellite (system, signal and number), registered on first sight."""
+        key = (str(getattr(sat, "system", "GPS")), str(getattr(sat, "signal", "L1 C/A")), int(sat.prn))
+        return self._satellites.setdefault(key, len(self._satellites))
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         deficit, sigma, named, note = self._deficit(obs)
@@ -273,9 +350,11 @@ class Cn0Monitor(Monitor):
         s = np.sin(np.deg2rad(el[ok]))
         b = np.minimum((s * self.params.bins).astype(int), self.params.bins - 1)
         signals = [self._signal(sat) for sat, k in zip(obs.sats, ok) if k]
+        satellites = [self._satellite(sat) for sat, k in zip(obs.sats, ok) if k]
         for k, (sk, ck) in enumerate(zip(s, snr[ok])):
             slot = self._count[b[k]] % self.params.samples_per_bin
             self._sin[b[k], slot], self._cn0[b[k], slot], self._group[b[k], slot] = sk, ck, signals[k]
+            self._sat[b[k], slot] = satellites[k]
             self._count[b[k]] += 1
         self._fit()
 
@@ -305,6 +384,33 @@ class Cn0Monitor(Monitor):
         self._line, self._sigma = (a, b), sigma
         if several and p.learn_offsets:
             self._fit_offsets()
+        if p.satellite_levels:
+            self._sigma = self._between_satellites(self._sigma)
+
+    def _between_satellites(self, sigma: float) -> float:
+        """The template's sigma given how direct signals differ between satellites (module docstring): the bins' `sigma`,
+        or, when the satellites' levels spread more than it, the robust spread of all reports, satellites weighted equally."""
+        assert self._line is not None
+        p, (a, b) = self.params, self._line
+        self._between = None
+        stored = self._sat >= 0
+        sat = self._sat[stored]
+        residual = self._cn0[stored] - (a + b * self._sin[stored])
+        if len(self._signals) > 1:
+            residual = residual - self._offset[self._group[stored]]
+        counts = np.bincount(sat, minlength=len(self._satellites))
+        ready = counts >= p.min_samples_per_satellite
+        if ready.sum() < p.min_satellites:
+            return sigma
+        levels = _quantile_by_group(residual, sat, counts, p.mid_q)[ready]
+        spread = MAD_TO_SIGMA * float(np.median(np.abs(levels - np.median(levels))))
+        self._between = (spread, sigma * (1.0 + p.levels_z * MAD_RELATIVE_SE / math.sqrt(len(levels))))
+        if spread <= self._between[1]:
+            return sigma
+        counted = ready[sat]
+        residual, weight = residual[counted], 1.0 / counts[sat[counted]]
+        centre = _weighted_median(residual, weight)
+        return max(sigma, MAD_TO_SIGMA * _weighted_median(np.abs(residual - centre), weight))
 
     def _fit_offsets(self) -> None:
         """Each signal's offset from its reports about the template (module docstring), relative to an anchor signal."""
@@ -325,6 +431,25 @@ class Cn0Monitor(Monitor):
                 self._spread[k] = max(float(q_high - q_mid) / (self._z_high - self._z_mid), self._sigma)
         anchor = 0 if ready[0] else int(np.argmax(counts))
         self._offset[ready] = self._offset[anchor] + level[ready] - level[anchor]
+
+
+def _quantile_by_group(values: np.ndarray, group: np.ndarray, counts: np.ndarray, q: float) -> np.ndarray:
+    """The q quantile (linear interpolation, as numpy.quantile) of `values` within each group 0..len(counts)-1 (`counts`:
+    the group sizes, np.bincount(group)); NaN for an empty group."""
+    ordered = values[np.lexsort((values, group))]
+    start = np.cumsum(counts) - counts
+    position = start + np.maximum(counts - 1, 0) * q
+    low = np.minimum(np.floor(position).astype(np.int64), len(ordered) - 1)
+    high = np.minimum(low + 1, np.maximum(start + counts - 1, 0))
+    out = ordered[low] + (position - low) * (ordered[high] - ordered[low])
+    return np.where(counts > 0, out, np.nan)
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The smallest value at which the cumulative weight reaches half the total (the weighted lower median)."""
+    order = np.argsort(values, kind="stable")
+    cumulative = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])])
 
 
 def _label(sat) -> str:

@@ -22,7 +22,12 @@ class MatcherParams(GateParams):
 
     min_range_m: float = Field(1.0, ge=0.0, description="ignore returns closer than this (the vessel itself; default 1 m)")
     max_range_m: float = Field(100.0, gt=0.0, description="ignore returns farther than this (HDL-32E datasheet: 100 m)")
-    max_speed_mps: float = Field(10.0, gt=0.0, description="faster estimated motion is a failed match (default 10 m/s)")
+    max_speed_mps: float = Field(
+        20.0,
+        gt=0.0,
+        description="faster estimated motion is a failed match (default 20 m/s: a real recording passes, a boat at 6 kn (3.1 m/s) "
+        "or a car at 30 kn (15.4 m/s); the library's vessels do 2-3 m/s)",
+    )
     max_yaw_rate_dps: float = Field(60.0, gt=0.0, description="faster estimated turning is a failed match (default 60 deg/s)")
     prior_max_age_s: float = Field(
         1.0, gt=0.0, description="the constant-velocity prior (de-skew, initial guess) is dropped when its last good match is older (default 1 s)"

@@ -242,6 +242,14 @@ def test_one_epoch_per_fix_time_whatever_its_print():
     assert [[x.tag for x in c] for c in closed] == [[0, 1]] and [x.tag for x in splitter.close()] == [2, 3]
 
 
+def test_a_multiplexers_repeated_lines_cut_no_epoch():
+    # the B&G chartplotter's log repeats VTG, ZDA and XTE lines; each repeat used to cut a position-less epoch off (157 epochs)
+    epochs, tally = epochs_of(DATA / "gpsd" / "bundg_zeus_9.log")
+    times = [e.seconds_of_day for e in epochs if e.seconds_of_day is not None]
+    assert tally.skipped["repeated line"] > 0
+    assert len(epochs) == len(times) == len(set(times)) and all(e.has_fix for e in epochs)
+
+
 def test_no_fix_and_dgps_epochs_are_kept():
     epochs, _ = epochs_of(DATA / "gpsd" / "ublox-lea-5q.log")
     assert any(e.quality == 0 for e in epochs)

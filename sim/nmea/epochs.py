@@ -8,8 +8,10 @@ of a type a receiver writes once per epoch (GGA, RMC, GNS, GLL, VTG, ZDA, GST) f
 (GPVTG and GAVTG are one epoch's) closes it: this
 cuts the epochs of a receiver that leaves its time empty while it has no fix, and a GLL, whose
 time never cuts (receivers stamp it a few milliseconds or a second off their GGA's), joins the
-epoch it follows. Every other line (GSA, GSV, unread lines) joins the open epoch. Lines that are
-not read are counted by reason (sim.nmea.read.REASONS) in a Tally.
+epoch it follows. Every other line (GSA, GSV, unread lines) joins the open epoch. A line identical to one already in the
+open epoch is a repeat, as an NMEA multiplexer writes them (gpsd's bundg_zeus_9.log, a B&G chartplotter's, repeats
+VTG, ZDA, XTE lines): it is dropped, counted as "repeated line", and cuts nothing (a repeated VTG would otherwise cut
+a position-less epoch off the fix's). Lines that are not read are counted by reason (sim.nmea.read.REASONS) in a Tally.
 
 Merging (assemble), each value from the first sentence that gives it:
 - time: GGA, RMC, GNS, else GLL, else ZDA (of several GGAs, RMCs or GNSs: the GN talker's, else
@@ -96,6 +98,9 @@ class Splitter:
         """Take one line; a line that starts a new epoch returns the one it closed."""
         text = text.strip()
         if not text or text.startswith("#"):
+            return None
+        if any(line.text == text for line in self._lines):
+            self.tally.skipped["repeated line"] += 1
             return None
         try:
             record: Record | None = read(text)

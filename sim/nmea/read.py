@@ -30,8 +30,8 @@ from typing import NamedTuple
 from sim.nmea.write import KNOT_MPS, checksum
 
 KMH_MPS = 1.0 / 3.6
-REASONS = ("not a sentence", "no checksum", "bad checksum", "proprietary", "other type")
-"""Why a line is not read (Skipped.reason)."""
+REASONS = ("not a sentence", "no checksum", "bad checksum", "proprietary", "other type", "repeated line")
+"""Why a line is not read (Skipped.reason; "repeated line": sim.nmea.epochs drops a line identical to one already in its epoch)."""
 _TIME = re.compile(r"(\d\d)(\d\d)(\d\d(?:\.\d*)?)")
 _DATE = re.compile(r"(\d\d)(\d\d)(\d\d)")
 _ANGLE = re.compile(r"(\d+)(\d\d(?:\.\d*)?)")

@@ -131,3 +131,17 @@ def test_bad_arguments_are_one_line_errors():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="action"):
         env.unwrapped.step(np.array([np.nan, 0.0]))
+
+
+def test_an_estimator_fed_the_imu_and_compass_gets_them_in_the_env_as_in_a_run():
+    fed = 'estimators=[{id="ekf", kind="ekf", sensors=["gnss", "odometry", "imu", "compass"]}]'
+    env = gymnasium.make(scenarios.gym.ENV_ID, scenario=SCENARIO, set=[*SHORT, fed, "expect=[]"], azimuth_bins=36, estimator="ekf")
+    env.reset(seed=3)
+    for _ in range(5):
+        env.step(np.array([0.78, 0.78], np.float32))
+    episode = env.unwrapped._episode
+    headings = episode.feed.recorder.heading_rows["t"].array()
+    assert len(headings) >= 5 * 0.1 * episode.run.compass.config.rate_hz - 1  # every compass output of the 5 steps, once
+    assert np.all(np.diff(headings) > 0) and headings[-1] <= episode.sensed_until
+    assert "ekf" not in episode.feed.dead
+    env.close()

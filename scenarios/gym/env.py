@@ -38,6 +38,7 @@ from riverbench.angles import wrap_angle
 from scenarios.gym import observation
 from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed
+from scenarios.pipeline.inertial import with_inertial
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import FixEvent, ScanEvent
 from scenarios.pipeline.vessel_run import VesselRun
@@ -69,6 +70,8 @@ class _Episode:
     last_fix: object = None
     last_scan: object = None
     station_m: float = 0.0
+    sensed_until: float = 0.0
+    """Stamp of the last scan or fix fed: the IMU and compass outputs up to it have been fed too."""
 
 
 class RiverNavEnv(gymnasium.Env):
@@ -122,7 +125,7 @@ class RiverNavEnv(gymnasium.Env):
         feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, t_start)
         pilot = Autopilot(self.world.route, sc.control.dynamics, sc.vessel.speed_mps, sc.control.autopilot)
         compass = Compass(sc.control.compass_sigma_deg, sc.control.gyro_sigma_dps, episode_seed)
-        self._episode = _Episode(run, pool, feed, pilot, compass)
+        self._episode = _Episode(run, pool, feed, pilot, compass, sensed_until=float(run.loop.t))
         self._episode.station_m = run.loop.station_m
         self._start_station = self._episode.station_m
         return self._observe(), self._info()
@@ -133,12 +136,16 @@ class RiverNavEnv(gymnasium.Env):
         if act.shape != (2,) or not np.isfinite(act).all():
             raise ValueError(f"action must be two finite thruster commands in [-1, 1], got {action!r}")
         loop = ep.run.loop
-        for event in loop.step(tuple(np.clip(act, -1.0, 1.0))):
+        events = loop.step(tuple(np.clip(act, -1.0, 1.0)))
+        # the IMU's and compass's outputs between the step's scans and fixes, as a run feeds them (none without such sensors)
+        for event in with_inertial(iter(events), ep.run.trajectory, ep.run.imu, ep.run.compass, ep.sensed_until):
             ep.feed.push(event)
             if isinstance(event, ScanEvent):
                 ep.last_scan = event.scan
             elif isinstance(event, FixEvent):
                 ep.last_fix = event.fix
+        if events:
+            ep.sensed_until = max(ep.sensed_until, float(events[-1].stamp))
         ep.feed.finish()
         log = ep.run.watch.log
         station = loop.station_m

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
+import numpy as np
+
 UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 """Time 0 of UNIX time."""
 GPS_MINUS_UTC_S = 18
@@ -32,6 +34,16 @@ def unix_ns(when: datetime) -> int:
 def scenario_unix_ns(epoch_utc: datetime, seconds: float) -> int:
     """UNIX nanoseconds of scenario time `seconds` (since the scenario's time 0, whose UTC time is `epoch_utc`)."""
     return unix_ns(epoch_utc) + round(seconds * 1e9)
+
+
+def on_ns_grid(seconds: np.ndarray) -> np.ndarray:
+    """Scenario seconds rounded to whole nanoseconds (`k / 1e9`), the float a ROS stamp or TUM line gives back exactly.
+
+    A run's scan and fix times are put on this grid so that a run exported to a bag (integer ns) and replayed sees
+    bit-identical times: off the grid they differ by up to 0.5 ns, which pf resampling and gicp's thresholds
+    amplify to metres (issue 22).
+    """
+    return np.round(np.asarray(seconds, dtype=np.float64) * 1e9) / 1e9
 
 
 def seconds_text(ns: int) -> str:

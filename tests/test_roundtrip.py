@@ -20,11 +20,6 @@ from scenarios.score.record import RunRecord
 
 OPEN_LOOP = [name for name in scenarios.available() if scenarios.load(name).control.mode == "open_loop"]
 ESTIMATE_M = 1e-6
-OFF_THE_NS_GRID = {"bu_truss_bridge", "canal_multipath", "open_river", "rough_water"}
-"""Scenarios whose replay is not yet exact: the run's stamps are floats off the nanosecond grid a bag carries (t_start from
-a root finder plus k * 0.1 s), so the replay's stamps differ from them by up to 0.5 ns, and the particle filter's
-resampling and gicp's thresholds turn that into different estimates (up to 5 m; every verdict still the same). Measured:
-with the run's scan and fix times rounded to the nanosecond these replay exactly (4.5e-9 m), but that moves their metrics."""
 
 
 def records(monkeypatch) -> list[RunRecord]:
@@ -88,15 +83,7 @@ def test_the_runs_order_of_fixes_and_scans_survives_the_bag(tmp_path, monkeypatc
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(name, marks=pytest.mark.xfail(strict=True, reason="the run's stamps are off the nanosecond grid (OFF_THE_NS_GRID)"))
-        if name in OFF_THE_NS_GRID
-        else name
-        for name in OPEN_LOOP
-    ],
-)
+@pytest.mark.parametrize("name", OPEN_LOOP)
 def test_a_library_run_exported_and_replayed_gives_every_verdict_and_estimate_again(name, tmp_path, monkeypatch):
     fmt = ("rosbag2", "mcap")[OPEN_LOOP.index(name) % 2]
     run, again = round_trip(scenarios.load(name).fast_variant(), fmt, tmp_path, monkeypatch)

@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from riverbench.unixtime import on_ns_grid
 from scenarios.pipeline.stream import FixEvent, ScanEvent
 from scenarios.score.vessel_log import VesselWatch
 from sim.autopilot import Autopilot
@@ -26,7 +27,7 @@ class ClosedLoop:
         self, world, trajectory: DrivenTrajectory, lidar, receiver, watch: VesselWatch, t_start: float, end_station_m: float, t_limit: float
     ):
         self.world, self.trajectory, self.lidar, self.receiver, self.watch = world, trajectory, lidar, receiver, watch
-        self.t = float(t_start)
+        self.t = float(on_ns_grid(t_start))
         self.t_start, self.end_station_m, self.t_limit = float(t_start), float(end_station_m), float(t_limit)
         self._fixes = 0
         self._periods = 0
@@ -45,14 +46,14 @@ class ClosedLoop:
         if self.done:
             raise RuntimeError(f"closed loop: the run has ended ({self.watch.log.outcome})")
         # times from counters (as the open-loop stream's), so scan and fix stamps never drift apart by rounding
-        t0, t1 = self.t, self.t_start + (self._periods + 1) * self.lidar.revolution_s
+        t0, t1 = self.t, float(on_ns_grid(self.t_start + (self._periods + 1) * self.lidar.revolution_s))
         self.trajectory.drive(commands, t1)
         contact = self.watch.period(t0, t1, commands)
         events: list[ScanEvent | FixEvent] = []
         if contact is None:
             events.append(ScanEvent(t0, self.lidar.scan(self.world, self.trajectory, t0)))
         until = t1 if contact is None else contact.t
-        while (t_fix := self.t_start + self._fixes / self.receiver.rate_hz) < until:
+        while (t_fix := float(on_ns_grid(self.t_start + self._fixes / self.receiver.rate_hz))) < until:
             events.append(FixEvent(t_fix, self.receiver.fix(self.world, self.trajectory, t_fix)))
             self._fixes += 1
         self.t = t1

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from riverbench.unixtime import on_ns_grid
 from sim.gnss_fix import GnssFix
 from sim.scan import Scan
 
@@ -36,20 +37,21 @@ class FixEvent:
 def scan_times(lidar, t_start: float, t_end: float) -> np.ndarray:
     """Revolution start times whose whole revolution lies in [t_start, t_end]."""
     n = int(math.floor((t_end - t_start) / lidar.revolution_s + 1e-9))
-    return t_start + np.arange(n) * lidar.revolution_s
+    return on_ns_grid(t_start + np.arange(n) * lidar.revolution_s)
 
 
 def events(world, trajectory, lidar, receiver, t_start: float = 0.0, t_end: float | None = None) -> Iterator[ScanEvent | FixEvent]:
     """Scans and fixes over [t_start, t_end) (default: the whole trajectory) in time order, lazily.
 
     A scan is stamped with its revolution start; at equal stamps the scan comes first. The
-    receiver is asked for fixes at increasing times, as its internal filter requires.
+    receiver is asked for fixes at increasing times, as its internal filter requires. Every time is on the
+    nanosecond grid, so a bag of the run replays with the very same times.
     """
     t_end = trajectory.duration if t_end is None else float(t_end)
     if not (math.isfinite(t_start) and math.isfinite(t_end) and 0.0 <= t_start < t_end <= trajectory.duration + 1e-9):
         raise ValueError(f"stream: need 0 <= t_start < t_end <= duration {trajectory.duration:.2f} s, got [{t_start}, {t_end}]")
     scans = ((float(t), 0, "scan") for t in scan_times(lidar, t_start, t_end))
-    fixes = ((float(t), 1, "fix") for t in receiver.epochs(t_end, t_start))
+    fixes = ((float(t), 1, "fix") for t in on_ns_grid(receiver.epochs(t_end, t_start)))
     for t, _, kind in heapq.merge(scans, fixes):
         if kind == "scan":
             yield ScanEvent(t, lidar.scan(world, trajectory, t))

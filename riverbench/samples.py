@@ -53,6 +53,10 @@ class HeadingSample:
     field_ut: np.ndarray
     sigma: float
     dip_deg: float
+    roll: float = 0.0
+    """The unit's own roll estimate it levelled the field with, rad (an AHRS publishes it with the heading)."""
+    pitch: float = 0.0
+    """The unit's own pitch estimate, rad."""
 
     @property
     def field_norm_ut(self) -> float:

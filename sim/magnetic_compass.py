@@ -114,16 +114,24 @@ class MagneticCompass:
         measured = body @ self._soft.T + self._hard + cfg.noise_ut * self._noise.standard_normal((len(ts), 3))
         roll = np.arctan2(rot[:, 2, 1], rot[:, 2, 2]) + math.radians(cfg.tilt_sigma_deg) * self._noise.standard_normal(len(ts))
         pitch = -np.arcsin(np.clip(rot[:, 2, 0], -1.0, 1.0)) + math.radians(cfg.tilt_sigma_deg) * self._noise.standard_normal(len(ts))
-        level = _level(measured, roll, pitch)
+        level = levelled(measured, roll, pitch)
         north_in_body = np.arctan2(level[:, 1], level[:, 0])
         yaw = math.radians(90.0 - cfg.declination_deg) - north_in_body
         yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
-        dip = np.degrees(np.arctan2(-level[:, 2], np.hypot(level[:, 0], level[:, 1])))
+        dip = dip_deg(level)
         sigma = math.radians(cfg.heading_sigma_deg)
-        return [HeadingSample(float(t), float(y), m.copy(), sigma, float(d)) for t, y, m, d in zip(ts, yaw, measured, dip)]
+        return [
+            HeadingSample(float(t), float(y), m.copy(), sigma, float(d), float(r), float(p))
+            for t, y, m, d, r, p in zip(ts, yaw, measured, dip, roll, pitch)
+        ]
 
 
-def _level(field: np.ndarray, roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
+def dip_deg(level: np.ndarray) -> np.ndarray:
+    """Dip (inclination, down positive) of levelled field vectors, deg: what a filter compares with the Earth's to spot steel."""
+    return np.degrees(np.arctan2(-level[:, 2], np.hypot(level[:, 0], level[:, 1])))
+
+
+def levelled(field: np.ndarray, roll: np.ndarray, pitch: np.ndarray) -> np.ndarray:
     """Body-frame vectors rotated into the level (yaw-only) frame: Ry(pitch) Rx(roll) v."""
     cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
     x, y, z = field[:, 0], field[:, 1], field[:, 2]

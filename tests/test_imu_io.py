@@ -94,6 +94,16 @@ def test_the_mount_and_the_magnetometer(exported):
     np.testing.assert_allclose([vec(m.magnetic_field) for m in mag], [h.field_ut * 1e-6 for h in headings], rtol=1e-15)
     assert 20e-6 < np.linalg.norm(vec(mag[0].magnetic_field)) < 80e-6  # tesla: the Earth's field is 25-65 uT
     np.testing.assert_allclose(mag[0].magnetic_field_covariance, np.diag([(0.05e-6) ** 2] * 3).ravel(), rtol=1e-12)  # 0.5 mG RMS
+    # the unit's orientation as xsens_mti_driver's /filter/quaternion: ENU, yaw the heading (true), with its roll and pitch
+    att = messages(exported["bag"], "/filter/quaternion")
+    assert len(att) == len(headings) and {a.header.frame_id for a in att} == {"imu_link"}
+    assert [a.header.stamp for a in att] == [m.header.stamp for m in mag]
+    q = np.array([[a.quaternion.w, a.quaternion.x, a.quaternion.y, a.quaternion.z] for a in att])
+    w, x, y, z = q.T
+    np.testing.assert_allclose(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)), [h.yaw for h in headings], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.arcsin(2 * (w * y - z * x)), [h.pitch for h in headings], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)), [h.roll for h in headings], rtol=0, atol=1e-12)
+    assert 0 < np.abs([h.roll for h in headings]).max() < 0.1  # the unit's own tilt estimate: truth plus its 0.2 deg error
 
 
 def test_a_default_export_has_no_inertial_topics(tmp_path):
@@ -118,6 +128,26 @@ def test_an_imu_fed_ekf_replays_its_run(tmp_path):
     without = replay(tmp_path / "bag", plain, tmp_path / "replay_plain", workers=1, report=False)
     assert "imu" not in without.metrics["run"]["recording"]
     assert np.abs(files.read_tum(without.out_dir / "ekf.tum")[:, 4:] - want[:, 4:]).max() > 1e-6
+
+
+def test_a_compass_fed_ekf_replays_its_run(tmp_path):
+    """Run, export, replay with the ekf fed the IMU and the compass: the compass comes back from /filter/quaternion and
+    /imu/mag, and the estimates are the run's to the TUM file's precision."""
+    fed = '["gnss", "odometry", "imu", "compass"]'
+    scenario = scenarios.load("canal_multipath", set=overrides(sensors=fed, lever="[0.0, 0.0, 0.0]"))
+    run = scenarios.run(scenario, tmp_path / "run", workers=1, report=False)
+    export(run.out_dir, "rosbag2", tmp_path / "bag")
+    replayed = replay(tmp_path / "bag", scenario, tmp_path / "replay", workers=1, report=False)
+    assert replayed.metrics["run"]["recording"]["compass"] == "/filter/quaternion and /imu/mag"
+    want, got = files.read_tum(run.out_dir / "ekf.tum"), files.read_tum(replayed.out_dir / "ekf.tum")
+    assert len(want) >= 14 and got.shape == want.shape
+    np.testing.assert_array_equal(got[:, 0], want[:, 0])
+    np.testing.assert_allclose(got[:, 1:], want[:, 1:], rtol=0, atol=1e-6)
+    # fed the IMU alone, the replayed ekf differs: the compass was fed
+    imu_only = scenarios.load("canal_multipath", set=overrides(lever="[0.0, 0.0, 0.0]"))
+    without = replay(tmp_path / "bag", imu_only, tmp_path / "replay_imu", workers=1, report=False)
+    assert "compass" not in without.metrics["run"]["recording"]
+    assert np.abs(files.read_tum(without.out_dir / "ekf.tum")[:, 1:] - want[:, 1:]).max() > 1e-6
 
 
 def copy_imu_bag(src: Path, dst: Path, frame_id: str, keep_tf_static: bool) -> None:

@@ -33,6 +33,8 @@
   sigma_d = sigma / sqrt(dt); the sim draws it so, sim.sensor_noise).
 - MagneticField, frame `imu_link`: the magnetometer's field in tesla as sensor_msgs/MagneticField
   wants (the Xsens driver writes its normalised units instead), covariance diagonal (noise)^2.
+- QuaternionStamped, frame `imu_link`: the compass unit's orientation in ENU (its heading, true, with
+  its own roll and pitch), as xsens_mti_driver publishes its filter's on /filter/quaternion.
 - riverbench_msgs/GnssReport, frame `gps`: the receiver's epoch report at full precision, which NMEA
   and GPSFix round (each satellite's elevation, azimuth and C/N0 to whole degrees and dB-Hz; NMEA's
   DOPs to 1-2 decimals, speed and course to 3 and 2): GGA quality, satellites used, HDOP, VDOP, PDOP,
@@ -360,6 +362,14 @@ def imu(store: Typestore, ns: int, gyro, accel, gyro_variance: float, accel_vari
         angular_velocity_covariance=diagonal(gyro_variance),
         linear_acceleration=vector3(store, accel),
         linear_acceleration_covariance=diagonal(accel_variance),
+    )
+
+
+def attitude(store: Typestore, ns: int, roll: float, pitch: float, yaw: float):
+    """geometry_msgs/QuaternionStamped of an AHRS's orientation (imu_link in ENU; roll, pitch, yaw as z-y'-x'' Euler angles)."""
+    x, y, z, w = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_quat()
+    return store.types["geometry_msgs/msg/QuaternionStamped"](
+        header=header(store, ns, IMU_FRAME), quaternion=store.types["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
     )
 
 

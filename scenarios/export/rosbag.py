@@ -17,6 +17,8 @@ Topics (messages detailed in ros_messages.py, the drivers' conventions in dialec
                             estimator is fed the IMU (the scenario simulates one); its mount base_link -> imu_link on /tf_static
     /imu/mag                sensor_msgs/MagneticField, one per compass output, frame imu_link (xsens_mti_driver), tesla; only when
                             an estimator is fed the compass
+    /filter/quaternion      geometry_msgs/QuaternionStamped, one per compass output, frame imu_link (xsens_mti_driver's filter
+                            orientation, ENU): the unit's heading with the roll and pitch it levelled the field with
     /ground_truth/odom      nav_msgs/Odometry map -> base_link, the true pose at each scan's stamp, covariance zero (exact)
     /ground_truth/tf        tf2_msgs/TFMessage map -> base_link, the same pose, for viewers only: Foxglove takes transforms
                             from every TFMessage topic, ROS tf2 listens on /tf and /tf_static only
@@ -65,6 +67,7 @@ TRUTH_TOPIC = "/ground_truth/odom"
 TRUTH_TF_TOPIC = "/ground_truth/tf"
 IMU_TOPIC = "/imu/data"
 MAG_TOPIC = "/imu/mag"
+ATTITUDE_TOPIC = "/filter/quaternion"
 
 
 def offered(durability: QosDurability) -> list[Qos]:
@@ -108,7 +111,11 @@ def inertial_topics(info: StreamInfo) -> list[Topic]:
     volatile = offered(QosDurability.VOLATILE)
     if info.inertial is None:
         return []
-    mag = [Topic(MAG_TOPIC, "sensor_msgs/msg/MagneticField", volatile)] if info.inertial.compass_noise_ut is not None else []
+    mag = (
+        [Topic(MAG_TOPIC, "sensor_msgs/msg/MagneticField", volatile), Topic(ATTITUDE_TOPIC, "geometry_msgs/msg/QuaternionStamped", volatile)]
+        if info.inertial.compass_noise_ut is not None
+        else []
+    )
     return [Topic(IMU_TOPIC, "sensor_msgs/msg/Imu", volatile), *mag]
 
 
@@ -225,6 +232,7 @@ def inertial_messages(store: Typestore, info: StreamInfo, frame: Frame) -> list[
         for heading in frame.headings:
             t = msgs.ros_ns(info.epoch_utc, heading.stamp)
             out.append((MAG_TOPIC, t, msgs.magnetic_field(store, t, heading.field_ut, variance)))
+            out.append((ATTITUDE_TOPIC, t, msgs.attitude(store, t, heading.roll, heading.pitch, heading.yaw)))
     return out
 
 

@@ -9,8 +9,10 @@ names (either type). With NMEA, the only NavSatFix topic and the only gps_msgs/m
 any, refine its epochs (scenarios.replay.fixes), and a riverbench export's riverbench_msgs/msg/GnssReport
 gives them its DOPs and satellites unrounded (scenarios.replay.reports). When the scenario feeds an estimator the IMU: the only
 sensor_msgs/msg/Imu topic, or the one `imu_topic` names, read in base_link by its /tf_static mount
-(scenarios.replay.imu; a bag without an Imu topic replays without it). Every event is stamped with its message's header
-stamp (see scenarios.replay.recording for the time base and the ordering; scenarios.replay.clouds
+(scenarios.replay.imu; a bag without an Imu topic replays without it). When it feeds one the compass: the only
+geometry_msgs/msg/QuaternionStamped and sensor_msgs/msg/MagneticField topics, an AHRS's orientation and field as
+xsens_mti_driver records them (scenarios.replay.compass; without them the replay runs without a compass). Every event
+is stamped with its message's header stamp (see scenarios.replay.recording for the time base and the ordering; scenarios.replay.clouds
 and .fixes for the fields).
 """
 
@@ -29,6 +31,7 @@ from scenarios.pipeline.feed import BadScan
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import clouds, fixes, reports
 from scenarios.replay import imu as imu_module
+from scenarios.replay.compass import ATTITUDE, MAGNETIC, CompassPairing, CompassTopics
 from scenarios.replay.recording import REORDER_LAG_S, Event, Geo, LogStats, Place, RecordedFix, Recording, TimeOrder
 from sim.nmea.epochs import Line, Splitter, assemble
 
@@ -59,6 +62,7 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
         span = (geo.seconds(reader.start_time), geo.seconds(reader.end_time))
         kind = "rosbag2" if reader.is2 else "ROS 1 bag"
         imu = imu_mount(reader, path, types, place, imu_topic)
+        compass = compass_topics(types, place)
     source = gps + (f" (positions, DOPs and satellites refined by {' and '.join(refine)})" if refine else "")
     stats = LogStats() if types[gps] == SENTENCE else None
     return Recording(
@@ -68,10 +72,19 @@ def read(path: str | Path, place: Place, lidar_topic: str | None = None, gps_top
         source,
         geo,
         *span,
-        events=lambda: imu_module.batched(events(path, lidar, gps, refine, geo, stats, imu)),
+        events=lambda: imu_module.batched(events(path, lidar, gps, refine, geo, stats, imu, compass)),
         nmea=stats,
         imu_source=imu[1].source if imu else "",
+        compass_source=compass.source if compass else "",
     )
+
+
+def compass_topics(types: dict[str, str], place: Place) -> CompassTopics | None:
+    """The bag's AHRS orientation and field topics when the scenario feeds the compass and the bag has one of each."""
+    if place.compass_sigma is None:
+        return None
+    attitude, field = sole(types, ATTITUDE), sole(types, MAGNETIC)
+    return CompassTopics(attitude, field, place.compass_sigma) if attitude and field else None
 
 
 def imu_mount(reader: AnyReader, path: Path, types: dict[str, str], place: Place, named: str | None) -> tuple[str, imu_module.ImuMount] | None:
@@ -156,15 +169,25 @@ def header_ns(msg) -> int:
 
 
 def events(
-    path: Path, lidar: str, gps: str, refine: tuple[str, ...], geo: Geo, stats: LogStats | None, imu: tuple[str, imu_module.ImuMount] | None = None
+    path: Path,
+    lidar: str,
+    gps: str,
+    refine: tuple[str, ...],
+    geo: Geo,
+    stats: LogStats | None,
+    imu: tuple[str, imu_module.ImuMount] | None = None,
+    compass: CompassTopics | None = None,
 ) -> Iterator[Event | imu_module.ImuReading]:
-    """Scans, fixes, unreadable scans and IMU readings in time order, read lazily (NMEA lines and epochs counted into `stats`)."""
+    """Scans, fixes, unreadable scans, IMU readings and compass headings in time order, read lazily (NMEA lines and epochs
+    counted into `stats`)."""
     order = TimeOrder()
+    pairing = CompassPairing(compass.sigma if compass else math.nan)
     precise: dict[int, dict[str, object]] = {}  # header stamp -> message type -> the refining message
     epochs = Splitter(stats.tally if stats is not None else None)
     with opened(path) as reader:
         imu_topic = imu[0] if imu else ""
-        connections = [c for c in reader.connections if c.topic in (lidar, gps, imu_topic, *refine)]
+        compass_topics = (compass.attitude, compass.field) if compass else ()
+        connections = [c for c in reader.connections if c.topic in (lidar, gps, imu_topic, *compass_topics, *refine)]
         for connection, log_ns, raw in reader.messages(connections=connections):
             if lidar and connection.topic == lidar:
                 order.add(scan_event(reader, connection.msgtype, raw, lidar, geo.seconds(log_ns), geo))
@@ -172,6 +195,11 @@ def events(
             msg = reader.deserialize(raw, connection.msgtype)
             if imu and connection.topic == imu_topic:
                 order.add(imu_module.reading(msg, geo.seconds(header_ns(msg)), imu[1]))
+            elif connection.topic in compass_topics:
+                ns = header_ns(msg)
+                take = pairing.attitude if connection.msgtype == ATTITUDE else pairing.field
+                if (heading := take(ns, geo.seconds(ns), msg)) is not None:
+                    order.add(heading)
             elif connection.topic in refine:
                 precise.setdefault(header_ns(msg), {})[connection.msgtype] = msg
             elif connection.msgtype == SENTENCE:

@@ -25,7 +25,7 @@ import pymap3d
 
 from riverbench.unixtime import UNIX_EPOCH, unix_ns
 from scenarios.pipeline.feed import BadScan
-from scenarios.pipeline.inertial import ImuEvent
+from scenarios.pipeline.inertial import HeadingEvent, ImuEvent
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay.imu import ImuReading
 from sim.geodesy import LocalFrame
@@ -46,7 +46,7 @@ class RecordedFix:
     sentences: tuple[str, ...] = ()
 
 
-Event = ScanEvent | RecordedFix | BadScan | ImuEvent
+Event = ScanEvent | RecordedFix | BadScan | ImuEvent | HeadingEvent
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,9 @@ class Place:
     imu_noise: tuple[float, float] | None = None
     """The scenario's IMU white-noise densities (gyro rad/s/sqrt(Hz), accel m/s^2/sqrt(Hz)) when an estimator is fed
     the IMU (then a bag's sensor_msgs/Imu is read), else None."""
+    compass_sigma: float | None = None
+    """The scenario's compass heading accuracy (rad) when an estimator is fed the compass (then a bag's AHRS
+    orientation and field are read, scenarios.replay.compass), else None."""
 
 
 @dataclass(frozen=True)
@@ -142,6 +145,7 @@ class Recording:
     events: Callable[[], Iterator[Event]] = field(repr=False)
     nmea: LogStats | None = field(default=None, repr=False)
     imu_source: str = ""
+    compass_source: str = ""
     facts: dict = field(default_factory=dict)
     """What the reader found that a report should state (a capture's sensor, clocks, revolutions, fixes in the file)."""
 
@@ -153,7 +157,7 @@ class Recording:
 
 class TimeOrder:
     """Events released in stamp order, once the recording has moved past them; at the same stamp an IMU sample, then a
-    scan, then a fix or failure (a run's IMU batch up to a scan comes before it)."""
+    compass heading, then a scan, then a fix or failure (a run's IMU batch and heading up to a scan come before it)."""
 
     def __init__(self) -> None:
         self._heap: list[tuple[float, int, int, Event | ImuReading]] = []
@@ -161,7 +165,7 @@ class TimeOrder:
 
     def add(self, event: Event | ImuReading) -> None:
         """Hold an event until its turn."""
-        rank = 0 if isinstance(event, ImuReading) else 1 if isinstance(event, ScanEvent) else 2
+        rank = 0 if isinstance(event, ImuReading) else 1 if isinstance(event, HeadingEvent) else 2 if isinstance(event, ScanEvent) else 3
         heapq.heappush(self._heap, (event.stamp, rank, next(self._seq), event))
 
     def release(self, before: float) -> Iterator[Event | ImuReading]:

@@ -96,7 +96,7 @@ def replay(
     out = Path(out_dir) if out_dir is not None else Path("runs") / f"replay-{path.stem}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
     check_out(out, directory=True)
     world = worlds.load(scenario.world, **scenario.world_params)
-    place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg, imu_noise(scenario))
+    place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg, imu_noise(scenario), compass_sigma(scenario))
     read_start = time.perf_counter()
     opened = open_recording(path, place, lidar_topic, gps_topic, imu_topic)
     read_s = time.perf_counter() - read_start
@@ -123,6 +123,13 @@ def imu_noise(scenario: Scenario) -> tuple[float, float] | None:
         return None
     gyro, accel = scenario.imu.noise_specs()
     return gyro.white, accel.white
+
+
+def compass_sigma(scenario: Scenario) -> float | None:
+    """The scenario's compass heading accuracy (rad) when an estimator is fed the compass, else None."""
+    if scenario.compass is None or not any("compass" in e.sensors_used for e in scenario.estimators):
+        return None
+    return math.radians(scenario.compass.heading_sigma_deg)
 
 
 def open_recording(path: Path, place: Place, lidar_topic: str | None, gps_topic: str | None, imu_topic: str | None = None) -> Recording:
@@ -202,6 +209,7 @@ def replay_into(
             "lidar": recording.lidar_source,
             "gps": recording.gps_source,
             **({"imu": recording.imu_source} if recording.imu_source else {}),
+            **({"compass": recording.compass_source} if recording.compass_source else {}),
             "time_zero_utc": geo.utc(0.0).isoformat(),
             "origin": list(geo.origin),
             "origin_from": geo.origin_source,

@@ -160,7 +160,9 @@ def test_pcap_replay_within_its_quantisation(recorded):
     sim_fixes, replay_fixes = read_csv(run / "gps.csv"), read_csv(out / "gps.csv")
     assert np.abs(replay_fixes["t"] - sim_fixes["t"]).max() <= 0.0051
     assert np.hypot(replay_fixes["e"] - sim_fixes["e"], replay_fixes["n"] - sim_fixes["n"]).max() < 0.015
-    assert (replay_fixes["hdop"] == fixes.NOMINAL_HDOP).all() and (replay_fixes["quality"] == sim_fixes["quality"]).all()
+    measured = np.isin(replay_fixes["quality"], sorted(fixes.SATELLITE_SOLUTIONS))
+    assert (replay_fixes["hdop"][measured] == fixes.NOMINAL_HDOP).all() and (replay_fixes["quality"] == sim_fixes["quality"]).all()
+    assert np.isnan(replay_fixes["hdop"][replay_fixes["quality"] == 6]).all()
 
 
 def test_matcher_odometry_starts_from_an_estimate_with_a_heading(recorded):
@@ -361,7 +363,8 @@ def test_nmea_and_rmc_read_back():
     assert got.sats == (SatelliteReport(3, 120.0, 36.0, 44.0, True), SatelliteReport(7, 250.0, 12.0, 0.0, False))
     for quality in (1, 6, 0):
         rmc = fixes.from_nmea(12.5, [sim.nmea.rmc(dataclasses.replace(fix, quality=quality))], geo)
-        assert rmc.quality == quality and (rmc.hdop == fixes.NOMINAL_HDOP)
+        # a satellite solution without DOPs is weighed as an open-sky one; a coast or no fix has no geometry (NaN)
+        assert rmc.quality == quality and (rmc.hdop == fixes.NOMINAL_HDOP if quality == 1 else np.isnan(rmc.hdop))
         assert abs(rmc.enu[2]) < 0.01 if quality else np.isnan(rmc.enu).all()  # no altitude: the origin's height
     epochs = Splitter()
     lines = fix.nmea() + fixes_later(fix).nmea()

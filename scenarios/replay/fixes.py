@@ -20,9 +20,12 @@ quality, enu, hdop, vdop and the satellites' prn, elevation, C/N0, use, system a
   float64 HDOP, VDOP and PDOP when its HDOP and VDOP print as NMEA's; else VDOP and PDOP stay GSA's.
   The satellites' C/N0 (1 dB-Hz) and elevation (1 deg) stay NMEA's integers.
 - An epoch that reports no DOP at all (GPRMC alone, as a Velodyne's position packets carry it, or a
-  NavSatFix of unknown covariance) gets HDOP NOMINAL_HDOP, an open-sky receiver's: the estimators
-  weigh it as such (uere_m * 1.0 / sqrt(2) per axis), the hdop monitor always trusts it and the
-  C/N0 monitor cannot judge it; without HDOP every estimator would refuse every fix. Without an
+  NavSatFix of unknown covariance) gets HDOP NOMINAL_HDOP, an open-sky receiver's, when it is a
+  satellite solution (quality 1, 2, 4, 5; any other has none: NaN): the estimators weigh it as such (uere_m * 1.0 / sqrt(2) per
+  axis), the hdop monitor always trusts it and the C/N0 monitor cannot judge it; without HDOP every
+  estimator would refuse every fix. A dead-reckoning epoch (RMC mode E, quality 6) has no satellite
+  geometry and gets none (NaN), as the receiver's own GGA leaves it empty: the monitors refuse it as
+  they do in a run (a pcap's GPRMC coast was trusted before, 45 gps_only verdicts off on a round trip). Without an
   altitude (GPRMC, or an empty GGA field) the fix is put at the ENU origin's height.
 """
 
@@ -40,6 +43,8 @@ from sim.nmea import epochs
 from sim.nmea.read import Record, Skipped, read
 
 NOMINAL_HDOP = 1.0
+SATELLITE_SOLUTIONS = frozenset({1, 2, 4, 5})
+"""GGA qualities of a position solved from satellites (not 0 no fix, not 6 dead reckoning)."""
 NAVSAT_QUALITY = {-1: 0, 0: 1, 1: 2, 2: 4}
 """NavSatStatus (NO_FIX, FIX, SBAS_FIX, GBAS_FIX) -> GGA quality."""
 HDOP_KINDS = frozenset({"GGA", "GNS", "GSA"})
@@ -66,7 +71,7 @@ def from_epoch(stamp: float, epoch: epochs.Epoch, geo: Geo) -> GnssFix | None:
         return None
     sats = tuple(SatelliteReport(s.svid, s.az_deg, s.el_deg, 0.0 if math.isnan(s.snr) else s.snr, s.used, s.system, s.signal) for s in epoch.sats)
     alt = epoch.alt if math.isfinite(epoch.alt) or not math.isfinite(epoch.lat) else geo.origin[2]
-    hdop = epoch.hdop if epoch.kinds & HDOP_KINDS else NOMINAL_HDOP
+    hdop = epoch.hdop if epoch.kinds & HDOP_KINDS else NOMINAL_HDOP if epoch.quality in SATELLITE_SOLUTIONS else math.nan
     return fix(
         stamp,
         geo,

@@ -1,7 +1,11 @@
-"""The vessel's heading sensor (AHRS: compass and gyro): true yaw and yaw rate plus white noise, as an autopilot reads them.
+"""The autopilot's heading sensor (an AHRS: a magnetic compass unit and a gyro), as the autopilot reads them.
 
-Every ASV steers its heading on such a sensor, not on GPS course or a position estimate; the
-closed loop gives the autopilot this heading by default, and the position of the estimator under test.
+Every ASV steers its heading on such a sensor, not on GPS course or a position estimate; the closed loop
+gives the autopilot this heading by default, and the position of the estimator under test. The heading is
+a magnetic compass unit's (sim.magnetic_compass, with the scenario's [compass] figures or the MTi
+defaults): its own unit with its own iron residuals and noise, and disturbed by the world's steel like
+the estimators' compass, so an autopilot under a steel bridge steers on a wrong heading as a real one
+does. The yaw rate is the true one differenced over the last 10 ms plus white gyro noise.
 """
 
 from __future__ import annotations
@@ -12,24 +16,28 @@ import numpy as np
 
 from riverbench.angles import wrap_angle
 from riverbench.rng import stream
+from sim.magnetic_compass import CompassConfig, MagneticCompass
+from sim.magnetism import SteelField
 
 
-class Compass:
-    """`read(trajectory, t)`: heading (rad from east, CCW) and yaw rate (rad/s) with seeded Gaussian noise."""
+class Ahrs:
+    """`read(trajectory, t, since)`: the compass unit's heading (rad from east, CCW, true) and a gyro's yaw rate (rad/s)."""
 
-    def __init__(self, sigma_deg: float = 1.0, rate_sigma_dps: float = 0.3, seed: int = 0):
-        self.sigma, self.rate_sigma = math.radians(sigma_deg), math.radians(rate_sigma_dps)
-        self._rng = stream(seed, "sim.compass")
+    def __init__(self, world, compass: CompassConfig | None = None, rate_sigma_dps: float = 0.3, seed: int = 0, steel: SteelField | None = None):
+        """`steel`: the world's steel dipoles when another compass already computed them (the same for every unit)."""
+        rng = stream(seed, "sim.compass")
+        self.compass = MagneticCompass(world, compass, seed=int(rng.integers(2**31)), steel=steel)
+        self.rate_sigma = math.radians(rate_sigma_dps)
+        self._rng = rng
 
     def read(self, trajectory, t: float, since: float, dt: float = 0.01) -> tuple[float, float]:
         """At time t of a trajectory known from `since` on (the rate is differenced over the last dt seconds)."""
+        (sample,) = self.compass.read(trajectory, np.array([t]))
         dt = min(dt, t - since)
         before, now = trajectory.poses(np.array([t - dt, t]))
-        yaw = math.atan2(now[1, 0], now[0, 0])
-        step = wrap_angle(yaw - math.atan2(before[1, 0], before[0, 0]))
+        step = wrap_angle(math.atan2(now[1, 0], now[0, 0]) - math.atan2(before[1, 0], before[0, 0]))
         rate = step / dt if dt > 0 else 0.0
-        noise = self._rng.standard_normal(2)
-        return yaw + self.sigma * float(noise[0]), rate + self.rate_sigma * float(noise[1])
+        return sample.yaw, rate + self.rate_sigma * float(self._rng.standard_normal())
 
 
 def with_heading(pose: np.ndarray, yaw: float) -> np.ndarray:

@@ -41,10 +41,10 @@ from scenarios.pipeline.feed import Feed
 from scenarios.pipeline.inertial import with_inertial
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import FixEvent, ScanEvent
-from scenarios.pipeline.vessel_run import VesselRun
+from scenarios.pipeline.vessel_run import VesselRun, autopilot_heading
 from scenarios.spec.scenario import Scenario
 from sim.autopilot import Autopilot
-from sim.compass import Compass, with_heading
+from sim.compass import Ahrs, with_heading
 from sim.scan import POINT_DTYPE
 
 
@@ -66,7 +66,7 @@ class _Episode:
     pool: MatcherPool
     feed: Feed
     pilot: Autopilot
-    compass: Compass
+    compass: Ahrs
     last_fix: object = None
     last_scan: object = None
     station_m: float = 0.0
@@ -124,7 +124,7 @@ class RiverNavEnv(gymnasium.Env):
         recorder = stack.recorder()
         feed = Feed(sc, pool.__enter__(), recorder, run.trajectory.pose, t_start)
         pilot = Autopilot(self.world.route, sc.control.dynamics, sc.vessel.speed_mps, sc.control.autopilot)
-        compass = Compass(sc.control.compass_sigma_deg, sc.control.gyro_sigma_dps, episode_seed)
+        compass = autopilot_heading(sc, self.world, run.compass)
         self._episode = _Episode(run, pool, feed, pilot, compass, sensed_until=float(run.loop.t))
         self._episode.station_m = run.loop.station_m
         self._start_station = self._episode.station_m

@@ -15,11 +15,11 @@ from scenarios.score.vessel_log import VesselWatch
 from scenarios.spec.scenario import Scenario
 from sim.autopilot import Autopilot
 from sim.clearance import HullClearance
-from sim.compass import Compass, with_heading
+from sim.compass import Ahrs, with_heading
 from sim.driven_trajectory import DrivenTrajectory
 from sim.imu import Imu
 from sim.magnetic_compass import MagneticCompass
-from sim.scene import Scene
+from sim.scene import Scene, split
 from sim.traffic import build_traffic
 from sim.trajectory import Trajectory
 from sim.vessel import hull_mesh
@@ -80,10 +80,17 @@ class VesselRun:
         believed = self.trajectory.pose if control.steer_on == "truth" else (lambda t: feed.pose_of(control.steer_on))
         if control.heading == "estimator":
             return autopiloted(self.loop, autopilot, lambda t: (believed(t), None))
-        compass = Compass(control.compass_sigma_deg, control.gyro_sigma_dps, self.scenario.seed)
+        compass = autopilot_heading(self.scenario, self.world, self.compass)
 
         def steer(t: float) -> tuple[np.ndarray, float]:
             yaw, rate = compass.read(self.trajectory, t, self.t_start)
             return with_heading(believed(t), yaw), rate
 
         return autopiloted(self.loop, autopilot, steer)
+
+
+def autopilot_heading(scenario: Scenario, world, compass: MagneticCompass | None = None) -> Ahrs:
+    """The autopilot's AHRS: a compass unit of the scenario's [compass] figures (or the defaults) and its gyro; the steel's
+    dipoles shared with the estimators' `compass` when there is one (they are the world's)."""
+    steel = compass.steel if compass is not None else None
+    return Ahrs(split(world)[0], scenario.compass, scenario.control.gyro_sigma_dps, scenario.seed, steel=steel)

@@ -204,8 +204,12 @@ class Control(BaseModel):
     heading: Literal["compass", "estimator"] = Field(
         "compass", description="closed loop: the heading the autopilot steers on: the boat's compass (AHRS) or the estimator's yaw"
     )
-    compass_sigma_deg: float = Field(1.0, ge=0, description="closed loop: white noise of the compass heading (1-sigma)")
-    gyro_sigma_dps: float = Field(0.3, ge=0, description="closed loop: white noise of the gyro's yaw rate (1-sigma, deg/s)")
+    gyro_sigma_dps: float = Field(
+        0.3,
+        ge=0,
+        description="closed loop: white noise of the autopilot's gyro yaw rate (1-sigma, deg/s); its heading is a magnetic compass "
+        "unit's with the scenario's [compass] figures (sim.compass.Ahrs)",
+    )
     autopilot: AutopilotConfig = Field(default_factory=AutopilotConfig, description="gains of the LOS autopilot")
     dynamics: WamvDynamics = Field(default_factory=WamvDynamics, description="the WAM-V 16 manoeuvring model")
     current_enu_mps: tuple[float, float] = Field((0.0, 0.0), description="closed loop: uniform water current (east, north), m/s")

@@ -117,7 +117,9 @@ class GnssConfig(BaseModel):
     )
     filter: FilterConfig = Field(default_factory=FilterConfig, description="Receiver navigation filter.")
     coast_limit_s: float = Field(10.0, ge=0.0, description="Dead reckoning (quality 6) this long after the last raw fix, then quality 0, s.")
-    corrections: Corrections = Field(default_factory=Corrections, description="Differential corrections applied (none, SBAS, RTK) and their GGA age and station.")
+    corrections: Corrections = Field(
+        default_factory=Corrections, description="Differential corrections applied (none, SBAS, RTK) and their GGA age and station."
+    )
     rtk: RtkConfig = Field(default_factory=RtkConfig, description="RTK engine (used when corrections.kind is 'rtk'; sim.rtk).")
     forced_outages: tuple[OutageWindow, ...] = Field((), description="Forced outage intervals (off by default).")
     forced_biases: tuple[BiasWindow, ...] = Field((), description="Forced position/range biases (off by default).")
@@ -285,8 +287,22 @@ class GnssReceiver:
 
         prn = self.constellation.prn[view].tolist()
         rtk_errors = self._rtk_errors.advance(t) if self._rtk_errors is not None else None
-        enu, quality, age = self._differential(t, antenna, enu, quality, self._rtk_lock.update(t, self.constellation.prn[view][tracked & los].tolist(), bool((tracked & nlos).any())), rtk_errors)
-        open_sky_enu = self._differential(t, antenna, open_sky_enu, open_sky_quality, self._open_sky_rtk_lock.update(t, self.constellation.prn[view][clear].tolist(), False), rtk_errors)[0]
+        enu, quality, age = self._differential(
+            t,
+            antenna,
+            enu,
+            quality,
+            self._rtk_lock.update(t, self.constellation.prn[view][tracked & los].tolist(), bool((tracked & nlos).any())),
+            rtk_errors,
+        )
+        open_sky_enu = self._differential(
+            t,
+            antenna,
+            open_sky_enu,
+            open_sky_quality,
+            self._open_sky_rtk_lock.update(t, self.constellation.prn[view][clear].tolist(), False),
+            rtk_errors,
+        )[0]
         az = (np.rad2deg(np.arctan2(dirs[:, 0], dirs[:, 1])) % 360.0).tolist()
         used = tracked if solution is not None else np.zeros(len(view), dtype=bool)
         snr = np.where(tracked, cn0, 0.0).tolist()

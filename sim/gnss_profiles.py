@@ -7,10 +7,10 @@ figures it reproduces in open sky (tests/test_gnss_profiles.py measures them; be
 - `sbas` (the default, the field study's "uncertainty restricted to less than a meter" in open river): a marine L1
   receiver with carrier-smoothed code and SBAS (WAAS) corrections, as a Hemisphere V102 GPS compass ("L1, C/A code
   with carrier phase smoothing"; horizontal < 1.0 m 95% with differential/SBAS corrections, < 2.5 m 95% autonomous:
-  V102 user guide, appendix B, table B-1). Open-sky figures: horizontal RMS 0.6 m and 95% 0.9 m (NovAtel SMART2
-  smart antenna, SBAS: docs.novatel.com/OEM7 SMART2 performance specifications); CEP50 = 0.833 RMS = 0.5 m for a
-  circular normal error. SBAS broadcasts satellite clock/orbit corrections and an ionospheric grid, which remove
-  most of the slowly varying range error; carrier smoothing (a Hatch filter) removes most of the white code noise.
+  V102 user guide, appendix B, table B-1). Open-sky figure: horizontal 95% 0.9 m (NovAtel SMART2 smart antenna,
+  SBAS: docs.novatel.com/OEM7 SMART2 performance specifications); CEP50 = 95% / 2.079 for a circular normal error.
+  SBAS broadcasts satellite clock/orbit corrections and an ionospheric grid, which remove most of the slowly
+  varying range error; carrier smoothing (a Hatch filter) removes most of the white code noise.
 - `consumer`: a single-frequency GPS module without corrections, u-blox NEO-M8N (data sheet UBX-15031086:
   horizontal 2.5 m CEP, GPS): the bench's historical receiver model (the fields' own defaults).
 - `rtk`: a multi-band RTK receiver with a base station's RTCM 3 corrections, u-blox ZED-F9P (data sheet
@@ -25,10 +25,9 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-DEFAULT_PROFILE = "sbas"
+ProfileName = Literal["sbas", "consumer", "rtk"]
+DEFAULT_PROFILE: ProfileName = "sbas"
 
-CEP50_PER_RMS = math.sqrt(math.log(2.0))
-"""CEP50 / horizontal RMS of a circular normal error (0.833)."""
 R95_PER_CEP50 = math.sqrt(math.log(20.0) / math.log(2.0))
 """95% radius / CEP50 of a circular normal error (2.079)."""
 
@@ -51,9 +50,7 @@ class Corrections(BaseModel):
         "latency_s + interval_s (RTCM 3 observations from a base: 1 Hz, u-blox ZED-F9P integration manual UBX-18010802; "
         "SBAS fast corrections: every 6 s, RTCA DO-229).",
     )
-    latency_s: float = Field(
-        0.0, ge=0.0, le=60.0, description="Delay from a correction's epoch to its use (radio link or NTRIP), s."
-    )
+    latency_s: float = Field(0.0, ge=0.0, le=60.0, description="Delay from a correction's epoch to its use (radio link or NTRIP), s.")
     station_id: int = Field(
         0,
         ge=0,
@@ -132,7 +129,6 @@ PROFILES: dict[str, Profile] = {
 }
 """The receiver profiles by name; a profile's defaults fill the sim.gnss.GnssConfig fields the user did not write."""
 
-ProfileName = Literal["sbas", "consumer", "rtk"]
 
 
 def _plain(value: Any) -> Any:

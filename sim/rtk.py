@@ -48,7 +48,10 @@ class RtkConfig(BaseModel):
     )
     fixed_ppm: float = Field(1.0, ge=0.0, description="Baseline-dependent part of the fixed CEP, parts per million (ZED-F9P data sheet: + 1 ppm).")
     fixed_vertical_factor: float = Field(
-        1.0, gt=0.0, description="Vertical sigma / horizontal per-axis sigma of a fixed solution (ZED-F9P data sheet: vertical 0.01 m + 1 ppm R50, as horizontal)."
+        1.0,
+        gt=0.0,
+        description="Vertical sigma / horizontal per-axis sigma of a fixed solution "
+        "(ZED-F9P data sheet: vertical 0.01 m + 1 ppm R50, as the horizontal).",
     )
     convergence_s: float = Field(
         10.0,

@@ -4,13 +4,13 @@ the quality, age of corrections and station as pynmea2 reads them."""
 
 from datetime import timedelta
 
+import gnss_worlds as gw
 import numpy as np
 import pynmea2
 import pytest
 from pydantic import ValidationError
 from typer.testing import CliRunner
 
-import gnss_worlds as gw
 import scenarios
 from scenarios.cli import app
 from sim import GnssReceiver
@@ -187,3 +187,12 @@ def test_gga_carries_quality_age_and_station_as_pynmea2_reads_them():
             assert 0.0 <= fix.correction_age_s <= rx.config.corrections.latency_s + rx.config.corrections.interval_s
             assert gga.ref_station_id == station
     assert seen == {"rtk": {RTK_FLOAT, RTK_FIXED}, "sbas": {2}, "consumer": {1}}
+
+
+def test_every_profile_name_has_a_profile():
+    from typing import get_args
+
+    from sim.gnss_profiles import ProfileName
+
+    assert set(get_args(ProfileName)) == set(PROFILES)
+    assert all(p.receiver and p.figures and p.why for p in PROFILES.values())

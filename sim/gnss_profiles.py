@@ -130,7 +130,6 @@ PROFILES: dict[str, Profile] = {
 """The receiver profiles by name; a profile's defaults fill the sim.gnss.GnssConfig fields the user did not write."""
 
 
-
 def _plain(value: Any) -> Any:
     """A nested model as the dict of the fields its author set (so that a profile still fills the others)."""
     return value.model_dump(exclude_unset=True) if isinstance(value, BaseModel) else value

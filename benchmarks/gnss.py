@@ -1,19 +1,52 @@
 """GNSS receiver cost on a world's route: milliseconds per fix (trajectory pose, satellites, LOS and
 multipath ray casts, WLS, receiver filter, truth), against the HDL-32E revolution time in the same
-run, and the share GNSS adds to a run's LiDAR simulation time. Prints medians over rounds.
+run, and the share GNSS adds to a run's LiDAR simulation time. Prints medians over rounds. Then each
+receiver profile's open-sky horizontal CEP50 and 95% (a static antenna in open water, 1 Hz records
+spread over a day) beside its datasheet figures (sim.gnss_profiles).
 
     .venv/bin/python benchmarks/gnss.py [--world charles_river] [--rounds 5] [--fixes 1000] [--revs 20]
+                                        [--records 24] [--record-s 600]
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from datetime import timedelta
 
 import numpy as np
+import trimesh
 
 import worlds
 from sim import HDL32E, GnssReceiver, Trajectory
+from sim.gnss import DEFAULT_EPOCH
+from sim.gnss_profiles import PROFILES
+from worlds.materials import WATER
+from worlds.world import Part, World
+
+
+class Still:
+    """An antenna that does not move (base_link at the origin)."""
+
+    def pose(self, t: float) -> np.ndarray:
+        return np.eye(4)
+
+
+def open_sky_errors(profile: str, records: int, record_s: float) -> np.ndarray:
+    """Horizontal errors (m) of a static receiver in open water: `records` 1 Hz records of record_s spread over
+    a day (geometry and slow errors vary), the first minute of each dropped."""
+    water = trimesh.creation.box(extents=(2000.0, 2000.0, 1.0))
+    water.apply_translation((0.0, 0.0, -0.5))
+    base = worlds.load("open_river")
+    world = World("open_sky", [Part("water", "water", WATER, water)], base.route, base.origin)
+    errors = []
+    for k in range(records):
+        rx = GnssReceiver(rate_hz=1.0, seed=k, profile=profile, epoch_utc=DEFAULT_EPOCH + timedelta(hours=24.0 * k / records))
+        for t in rx.epochs(record_s):
+            fix = rx.fix(world, Still(), t)
+            if t >= 60.0 and fix.quality:
+                errors.append(float(np.hypot(*fix.truth.error[:2])))
+    return np.asarray(errors)
 
 
 def main() -> None:
@@ -22,6 +55,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--fixes", type=int, default=1000, help="fixes per round (spread along the route)")
     parser.add_argument("--revs", type=int, default=20, help="LiDAR revolutions per round")
+    parser.add_argument("--records", type=int, default=24, help="open-sky records per profile (spread over a day)")
+    parser.add_argument("--record-s", type=float, default=600.0, help="length of each open-sky record, s")
     args = parser.parse_args()
 
     world = worlds.load(args.world)
@@ -66,6 +101,14 @@ def main() -> None:
     print(f"  of which trajectory.pose(t): {pose_ms:.3f} ms (the receiver asks for one pose per fix)")
     print(f"HDL-32E revolution:  {rev:.2f} ms (median of {args.rounds} rounds x {args.revs} revolutions)")
     print(f"GNSS at {rx.rate_hz:g} Hz adds {100 * share:.2f}% to LiDAR at {lidar.config.rate_hz:g} Hz (target < 5%)")
+    print(f"open-sky horizontal error, static antenna, {args.records} x {args.record_s:g} s at 1 Hz over a day:")
+    for name, profile in PROFILES.items():
+        errors = open_sky_errors(name, args.records, args.record_s)
+        cep50, p95 = float(np.median(errors)), float(np.percentile(errors, 95))
+        print(
+            f"  {name:9s} CEP50 {cep50:.3f} m (datasheet {profile.cep50_m:.3f})  95% {p95:.3f} m (datasheet {profile.p95_m:.3f})"
+            f"  [{profile.receiver}]"
+        )
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from stream_record import add_recording_args, load_or_record, parse_settings, replay
 
 import fusion
+from fusion.observation import POSITION_QUALITIES
 
 MONITORS = {
     "hdop": {"monitor": "hdop"},
@@ -83,12 +84,12 @@ def causes(fixes: list, after_outage_s: float) -> np.ndarray:
     after_outage_s of an epoch without a measured position, else 'other'."""
     out, last_gap = [], -np.inf
     for fix in fixes:
-        if fix.quality != 1:
+        if fix.quality not in POSITION_QUALITIES:
             last_gap = fix.stamp
         nlos_prn = {s.prn for s in (fix.truth.sats if fix.truth is not None else ()) if s.nlos}
         if any(s.used and s.prn in nlos_prn for s in fix.sats):
             out.append("nlos")
-        elif fix.quality == 1 and fix.stamp - last_gap <= after_outage_s:
+        elif fix.quality in POSITION_QUALITIES and fix.stamp - last_gap <= after_outage_s:
             out.append("outage")
         else:
             out.append("other")
@@ -174,7 +175,7 @@ def main() -> None:
     start = time.perf_counter()
     run = replay(rec, estimators)
     quality = np.array([f.quality for f in run["fix"]])
-    measured = quality == 1
+    measured = np.isin(quality, sorted(POSITION_QUALITIES))
     truth = [f.truth for f in np.asarray(run["fix"], dtype=object)[measured]]
     error = np.array([np.hypot(*t.error[:2]) for t in truth])
     added = np.array([np.hypot(*(t.error - t.open_sky_error)[:2]) for t in truth])

@@ -23,9 +23,11 @@ from sim import wls
 from sim.constellation import Constellation
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import FixTruth, GnssFix, SatelliteReport, SatelliteTruth
+from sim.gnss_profiles import DEFAULT_PROFILE, Corrections, ProfileName, with_profile
 from sim.multipath import L1_WAVELENGTH_M, FacadeIndex, code_multipath_error
 from sim.pseudorange import PseudorangeNoise, RangeErrors
 from sim.receiver_filter import CvKalman, FilterConfig
+from sim.rtk import RTK_FIXED, RTK_FLOAT, RtkConfig, RtkErrors, RtkLock
 from sim.scene import split
 from sim.traffic import Traffic
 from sim.visibility import trace
@@ -82,10 +84,18 @@ class MultipathConfig(BaseModel):
 
 
 class GnssConfig(BaseModel):
-    """All settings of the simulated receiver; every default is a consumer-grade GPS receiver."""
+    """All settings of the simulated receiver. The fields' own defaults are a consumer GPS module (profile 'consumer');
+    `profile` picks a receiver class whose datasheet values fill the fields not written (sim.gnss_profiles)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
+    profile: ProfileName = Field(
+        DEFAULT_PROFILE,
+        description="Receiver class whose values are the defaults of the other fields (sim.gnss_profiles): 'sbas' a marine "
+        "L1 receiver with SBAS corrections and carrier-smoothed code (Hemisphere V102 class: < 1.0 m 95% horizontal; "
+        "NovAtel SMART2 SBAS: 0.6 m RMS, 0.9 m 95%), 'consumer' a u-blox NEO-M8N (2.5 m CEP, GPS), 'rtk' a u-blox ZED-F9P "
+        "with a base station (0.01 m + 1 ppm CEP fixed, convergence < 10 s). A field written beside it wins.",
+    )
     rate_hz: float = Field(5.0, ge=1.0, le=10.0, description="Output rate, Hz (1-10).")
     epoch_utc: datetime = Field(DEFAULT_EPOCH, description="UTC at scenario time 0 (satellite geometry).")
     elevation_mask_deg: float = Field(12.0, ge=0.0, lt=90.0, description="Satellites below this are not used, deg.")
@@ -107,8 +117,17 @@ class GnssConfig(BaseModel):
     )
     filter: FilterConfig = Field(default_factory=FilterConfig, description="Receiver navigation filter.")
     coast_limit_s: float = Field(10.0, ge=0.0, description="Dead reckoning (quality 6) this long after the last raw fix, then quality 0, s.")
+    corrections: Corrections = Field(
+        default_factory=Corrections, description="Differential corrections applied (none, SBAS, RTK) and their GGA age and station."
+    )
+    rtk: RtkConfig = Field(default_factory=RtkConfig, description="RTK engine (used when corrections.kind is 'rtk'; sim.rtk).")
     forced_outages: tuple[OutageWindow, ...] = Field((), description="Forced outage intervals (off by default).")
     forced_biases: tuple[BiasWindow, ...] = Field((), description="Forced position/range biases (off by default).")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _profile_defaults(cls, data: object) -> object:
+        return with_profile(data) if isinstance(data, dict) else data
 
     @field_validator("epoch_utc")
     @classmethod
@@ -182,6 +201,10 @@ class GnssReceiver:
         self._cn0_rng = stream(self.seed, "gnss.cn0")
         self._navigator = _Navigator(self.config)
         self._open_sky = _Navigator(self.config)
+        rtk = self.config.corrections.kind == "rtk"
+        self._rtk_errors = RtkErrors(self.config.rtk, stream(self.seed, "gnss.rtk")) if rtk else None
+        self._rtk_lock = RtkLock.start(self.config.rtk)
+        self._open_sky_rtk_lock = RtkLock.start(self.config.rtk)
         self._offset = np.array(self.config.antenna_offset_m, dtype=float)
         self._mask = np.deg2rad(self.config.elevation_mask_deg)
         self._worlds: dict[int, _WorldGeometry] = {}
@@ -260,9 +283,26 @@ class GnssReceiver:
         solution = self._navigator.solve(sat_enu[tracked], pseudorange[tracked], sigma[tracked])
         enu, velocity, quality = self._navigator.step(t, solution)
         clear = cn0_open_sky >= noise.tracking_threshold_dbhz
-        open_sky_enu = self._open_sky.step(t, self._open_sky.solve(sat_enu[clear], open_sky_range[clear], sigma[clear]))[0]
+        open_sky_enu, _, open_sky_quality = self._open_sky.step(t, self._open_sky.solve(sat_enu[clear], open_sky_range[clear], sigma[clear]))
 
         prn = self.constellation.prn[view].tolist()
+        rtk_errors = self._rtk_errors.advance(t) if self._rtk_errors is not None else None
+        enu, quality, age = self._differential(
+            t,
+            antenna,
+            enu,
+            quality,
+            self._rtk_lock.update(t, self.constellation.prn[view][tracked & los].tolist(), bool((tracked & nlos).any())),
+            rtk_errors,
+        )
+        open_sky_enu = self._differential(
+            t,
+            antenna,
+            open_sky_enu,
+            open_sky_quality,
+            self._open_sky_rtk_lock.update(t, self.constellation.prn[view][clear].tolist(), False),
+            rtk_errors,
+        )[0]
         az = (np.rad2deg(np.arctan2(dirs[:, 0], dirs[:, 1])) % 360.0).tolist()
         used = tracked if solution is not None else np.zeros(len(view), dtype=bool)
         snr = np.where(tracked, cn0, 0.0).tolist()
@@ -287,7 +327,27 @@ class GnssReceiver:
             truth=FixTruth(enu=antenna, error=enu - antenna, sats=sat_truth, open_sky_error=open_sky_enu - antenna),
             speed_mps=speed,
             course_deg=course,
+            correction_age_s=age,
+            station_id=self.config.corrections.station_id if np.isfinite(age) else None,
         )
+
+    def _differential(
+        self, t: float, antenna: np.ndarray, enu: np.ndarray, quality: int, rtk: tuple[int, float], rtk_errors: tuple[np.ndarray, np.ndarray] | None
+    ) -> tuple[np.ndarray, int, float]:
+        """The fix after the corrections: position, GGA quality and correction age (s; NaN when not differential).
+        Only a measured code fix (quality 1) is corrected; dead reckoning and no fix stay as they are."""
+        kind = self.config.corrections.kind
+        if quality != 1 or kind == "none":
+            return enu, quality, np.nan
+        age = self.config.corrections.age_s(t)
+        if rtk_errors is None:  # SBAS: the corrections are in the range error model, the fix is differential
+            return enu, 2, age
+        rtk_quality, converging_s = rtk
+        fixed_error, float_error = rtk_errors
+        if rtk_quality == RTK_FIXED:
+            return antenna + fixed_error, RTK_FIXED, age
+        weight = self._rtk_lock.float_weight(converging_s)
+        return antenna + float_error + weight * (enu - antenna), RTK_FLOAT, age
 
     def _sky(self, geo: _WorldGeometry, antenna: np.ndarray, since_almanac: float):
         """Satellites above the mask: ENU positions, ranges, unit directions, elevations, indices."""

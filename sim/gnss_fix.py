@@ -50,11 +50,14 @@ class FixTruth:
 
 @dataclass(frozen=True)
 class GnssFix:
-    """One receiver output epoch. quality follows NMEA GGA: 0 invalid, 1 GPS, 6 dead reckoning.
+    """One receiver output epoch. quality follows NMEA GGA: 0 invalid, 1 GPS, 2 DGPS/SBAS, 4 RTK fixed, 5 RTK float,
+    6 dead reckoning.
 
     enu is the reported antenna position in the world's ENU frame (NaN when quality is 0);
     lat/lon/alt are the same position in WGS-84 degrees and metres; utc is ISO 8601;
-    speed_mps / course_deg are speed over ground and course (deg clockwise from north), NaN if unknown.
+    speed_mps / course_deg are speed over ground and course (deg clockwise from north), NaN if unknown;
+    correction_age_s and station_id the differential corrections' age (s) and reference station (GGA fields 13 and
+    14), NaN and None when the fix is not differential.
     """
 
     stamp: float
@@ -72,6 +75,8 @@ class GnssFix:
     truth: FixTruth | None = field(default=None, compare=False, repr=False)
     speed_mps: float = float("nan")
     course_deg: float = float("nan")
+    correction_age_s: float = float("nan")
+    station_id: int | None = None
 
     @property
     def valid(self) -> bool:

@@ -268,7 +268,8 @@ def test_truth_and_each_estimate_are_odometry_topics(canal, fmt):
 def test_navsat_fix_is_what_nmea_navsat_driver_writes_for_the_fixs_gga(outage, fmt):
     bags, (info, frames) = outage
     fixes = [fix for frame in frames for fix in frame.fixes]
-    assert [fix.quality for fix in fixes][:3] == [1, 6, 0] and {fix.quality for fix in fixes} == {0, 1, 6}
+    # the default receiver's measured fixes are SBAS-corrected: GGA quality 2
+    assert [fix.quality for fix in fixes][:3] == [2, 6, 0] and {fix.quality for fix in fixes} == {0, 2, 6}
     read = messages(bags[fmt], "/gps/fix")
     for (t, msg), fix in zip(read, fixes, strict=True):
         assert t == ns(msg.header.stamp) == ros_ns(info.epoch_utc, fix.stamp) and msg.header.frame_id == "gps"
@@ -281,8 +282,8 @@ def test_navsat_fix_is_what_nmea_navsat_driver_writes_for_the_fixs_gga(outage, f
         if gga.horizontal_dil:  # from the GGA's printed HDOP (2 decimals) the driver's covariance is the same to its rounding
             printed = navsat_as_the_driver_writes(int(gga.gps_qual), float(gga.horizontal_dil))[2]
             np.testing.assert_allclose(msg.position_covariance, printed, rtol=2 * 0.005 / float(gga.horizontal_dil) + 1e-12)
-        if fix.quality == 1:
-            assert (msg.status.status, msg.position_covariance_type) == (0, 1) and 0 < msg.position_covariance[0] < 400
+        if fix.quality == 2:  # STATUS_SBAS_FIX, APPROXIMATED, the driver's EPE 0.1 m for DGPS
+            assert (msg.status.status, msg.position_covariance_type) == (1, 1) and 0 < msg.position_covariance[0] < 4
         else:  # dead reckoning (a quality the driver does not list) and no fix: STATUS_NO_FIX, COVARIANCE_TYPE_UNKNOWN
             assert (msg.status.status, msg.position_covariance_type) == (-1, 0)
     sentences = messages(bags[fmt], "/nmea_sentence")

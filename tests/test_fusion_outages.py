@@ -18,6 +18,7 @@ import fusion
 import matcher
 import sim
 import worlds
+from fusion.observation import POSITION_QUALITIES
 from sim.gnss import GnssReceiver
 
 NAMES = ("gps_only", "hdop_switch", "ekf")
@@ -32,7 +33,7 @@ def drive_stretch(world_name: str, t0: float, t1: float):
 
 def outage(track) -> tuple[float, float]:
     """[start, end) of the stretch without a measured fix."""
-    lost = track.fix_stamp[track.fix_quality != 1]
+    lost = track.fix_stamp[~np.isin(track.fix_quality, sorted(POSITION_QUALITIES))]
     assert len(lost), "the stretch has no outage"
     return float(lost.min()), float(lost.max()) + 0.2
 
@@ -71,7 +72,7 @@ def test_canal_lock_outage_between_nlos_stretches(canal):
     assert worst(canal, "hdop_switch", a, b + 20.0) > 8.0
     assert ekf < 6.0
     # before it, the walls make the fixes err by metres (NLOS) while the ekf refuses them
-    before = (canal.fix_stamp >= a - 50.0) & (canal.fix_stamp < a) & (canal.fix_quality == 1)
+    before = (canal.fix_stamp >= a - 50.0) & (canal.fix_stamp < a) & np.isin(canal.fix_quality, sorted(POSITION_QUALITIES))
     assert np.max(canal.fix_error[before]) > 10.0
     assert worst(canal, "ekf", a - 50.0, a) < 6.0
     assert not canal.trusted["ekf"][before & (canal.fix_error > 10.0)].any()

@@ -1,4 +1,7 @@
-"""GNSS receiver: exact solutions, DOP, blackout under a deck, coasting, NLOS beside walls, faults."""
+"""GNSS receiver: exact solutions, DOP, blackout under a deck, coasting, NLOS beside walls, faults.
+
+The receiver here is the consumer profile (autonomous fixes, GGA quality 1, the filter tuned for its metre-level
+errors); tests/test_gnss_profiles.py covers the others."""
 
 from __future__ import annotations
 
@@ -12,7 +15,7 @@ from sim.multipath import code_multipath_error
 
 
 def raw_noise_off(**more) -> GnssReceiver:
-    return GnssReceiver(seed=0, filter_mode="raw", noise=gw.NOISE_OFF, **more)
+    return GnssReceiver(profile="consumer", seed=0, filter_mode="raw", noise=gw.NOISE_OFF, **more)
 
 
 def sat_dirs(fix, used_only=True) -> np.ndarray:
@@ -51,7 +54,7 @@ def test_dop_of_a_known_satellite_set_matches_the_hand_computed_value():
 
 
 def test_reported_dops_are_those_of_the_satellites_used():
-    rx = GnssReceiver(seed=4)
+    rx = GnssReceiver(profile="consumer", seed=4)
     fix = rx.fix(gw.open_water(), gw.Static(), 0.0)
     q = wls.dop(sat_dirs(fix))
     assert fix.hdop == pytest.approx(np.sqrt(q[0, 0] + q[1, 1]), rel=1e-6)
@@ -79,7 +82,7 @@ def test_under_the_deck_no_raw_fix_then_coast_then_invalid_then_recover():
     world = gw.bridge()
     motion = gw.Straight(speed=1.0, x0=60.0)  # under the deck for x in 100..160, i.e. t in 40..100 s
     raw = raw_noise_off()
-    kalman = GnssReceiver(seed=0, coast_limit_s=8.0)
+    kalman = GnssReceiver(profile="consumer", seed=0, coast_limit_s=8.0)
     qualities = {}
     for t in raw.epochs(130.0)[::5]:  # 1 Hz
         r, k = raw.fix(world, motion, t), kalman.fix(world, motion, t)
@@ -95,7 +98,7 @@ def test_under_the_deck_no_raw_fix_then_coast_then_invalid_then_recover():
 
 
 def test_forced_outage_coasts_then_reports_invalid():
-    rx = GnssReceiver(seed=1, coast_limit_s=3.0, forced_outages=[{"start_s": 5.0, "end_s": 12.0}])
+    rx = GnssReceiver(profile="consumer", seed=1, coast_limit_s=3.0, forced_outages=[{"start_s": 5.0, "end_s": 12.0}])
     world, motion = gw.open_water(), gw.Straight()
     q = {round(t, 1): rx.fix(world, motion, t).quality for t in rx.epochs(15.0)}
     assert q[4.8] == 1 and q[5.0] == 6 and q[7.8] == 6 and q[8.2] == 0 and q[11.8] == 0 and q[12.0] == 1
@@ -111,7 +114,7 @@ def test_after_an_outage_the_filter_follows_a_wrong_estimate_and_converges_slowl
             pose[1, 3] += 2.0 * max(t - 20.0 - 20.0 * np.pi / 2, 0.0)
             return pose
 
-    rx = GnssReceiver(seed=0, noise=gw.NOISE_OFF, forced_outages=[{"start_s": 22.0, "end_s": 32.0}])
+    rx = GnssReceiver(profile="consumer", seed=0, noise=gw.NOISE_OFF, forced_outages=[{"start_s": 22.0, "end_s": 32.0}])
     world, motion = gw.open_water(), Turn()
     fixes = {round(t, 1): rx.fix(world, motion, t) for t in rx.epochs(90.0)}
     err = {t: np.linalg.norm(f.truth.error[:2]) for t, f in fixes.items()}
@@ -124,7 +127,7 @@ def test_after_an_outage_the_filter_follows_a_wrong_estimate_and_converges_slowl
 
 
 def test_open_sky_error_equals_the_error_where_nothing_blocks_or_reflects():
-    rx = GnssReceiver(seed=4)
+    rx = GnssReceiver(profile="consumer", seed=4)
     world, motion = gw.open_water(), gw.Straight()
     for t in rx.epochs(30.0):
         fix = rx.fix(world, motion, t)
@@ -136,8 +139,8 @@ def test_open_sky_error_separates_the_environment_from_the_nominal_error():
     # nominal error exactly; the canyon adds NLOS errors on top, and forced faults are not nominal.
     canyon = gw.canyon(north_y=20.0, south_y=-20.0, height=25.0, x0=0.0, x1=300.0)
     forced = [{"start_s": 40.0, "end_s": 50.0}]
-    walled = GnssReceiver(seed=3, forced_outages=forced)
-    clear = GnssReceiver(seed=3)
+    walled = GnssReceiver(profile="consumer", seed=3, forced_outages=forced)
+    clear = GnssReceiver(profile="consumer", seed=3)
     motion, open_water = gw.Straight(speed=2.0, x0=0.0), gw.open_water()
     added = []
     for t in walled.epochs(120.0):
@@ -152,7 +155,7 @@ def test_open_sky_error_separates_the_environment_from_the_nominal_error():
 
 def test_wall_canyon_gives_nlos_errors_over_10m_with_low_hdop_that_vanish_in_open_water():
     world = gw.canyon(north_y=20.0, south_y=-20.0, height=25.0, x0=0.0, x1=300.0)
-    rx = GnssReceiver(seed=3)
+    rx = GnssReceiver(profile="consumer", seed=3)
     motion = gw.Straight(speed=2.0, x0=0.0)
     fixes = [rx.fix(world, motion, t) for t in rx.epochs(300.0)]
     x = np.array([f.truth.enu[0] for f in fixes])
@@ -231,7 +234,7 @@ def test_same_seed_same_fixes_different_seed_different_noise():
     world, motion = gw.canyon(), gw.Straight(x0=100.0)
 
     def run(seed):
-        rx = GnssReceiver(seed=seed)
+        rx = GnssReceiver(profile="consumer", seed=seed)
         return [rx.fix(world, motion, t) for t in rx.epochs(6.0)]
 
     a, b, c = run(7), run(7), run(8)
@@ -265,7 +268,7 @@ def test_bad_inputs_raise_one_clear_error():
 
 
 def test_antenna_next_to_a_building_is_not_inside_it():
-    fix = GnssReceiver().fix(gw.solid_building(), gw.Static(x=60.0, y=15.0), 0.0)
+    fix = GnssReceiver(profile="consumer").fix(gw.solid_building(), gw.Static(x=60.0, y=15.0), 0.0)
     assert fix.quality == 1
 
 
@@ -276,7 +279,7 @@ def test_canal_lock_walls_give_large_nlos_errors_at_low_hdop_open_river_does_not
     def run(name, **trajectory):
         world = worlds.load(name)
         motion = Trajectory(world, **trajectory)
-        rx = GnssReceiver(seed=0, rate_hz=1.0)
+        rx = GnssReceiver(profile="consumer", seed=0, rate_hz=1.0)
         fixes = [rx.fix(world, motion, t) for t in rx.epochs(motion.duration)]
         herr = np.array([np.linalg.norm(f.truth.error[:2]) for f in fixes])
         hdop = np.array([f.hdop for f in fixes])

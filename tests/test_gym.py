@@ -58,7 +58,7 @@ def test_the_observation_is_what_the_boat_knows_and_info_the_truth():
     assert env.observation_space.contains(obs)
     for _ in range(15):
         obs, reward, terminated, truncated, info = env.step(np.array([0.78, 0.78], np.float32))
-    assert obs["lidar"].shape == (32, 36) and obs["gps_quality"] == 1 and obs["estimate_valid"] in (0, 1)
+    assert obs["lidar"].shape == (32, 36) and obs["gps_quality"] == 2 and obs["estimate_valid"] in (0, 1)
     assert {"true_pose", "true_cross_track_m", "clearance_m"} <= set(info)
     assert not set(obs) & {"true_pose", "clearance_m"}
     # straight ahead at cruise on open water: about 0.2 m gained per step, reward ~= progress

@@ -38,7 +38,7 @@ def test_parser_rejects_bad_checksums_and_garbage():
 
 
 def test_receiver_epoch_sentences_are_valid_and_parse_back():
-    rx = GnssReceiver(seed=2)
+    rx = GnssReceiver(profile="consumer", seed=2)
     world, motion = gw.open_water(), gw.Straight(speed=2.0, y=3.0)
     for t in rx.epochs(3.0):
         fix = rx.fix(world, motion, t)

@@ -8,9 +8,10 @@
   the revolution's start, the driver's `timestamp_first_packet: true` (its default stamps the last
   packet, and every point's time is then negative), so time runs 0 to 0.1 s.
 - NavSatFix, frame `gps`: as nmea_navsat_driver writes a GGA (scenarios.export.dialect): status and
-  covariance type from the GGA quality (1 -> STATUS_FIX, APPROXIMATED; 0 and 6, which it does not
-  list -> STATUS_NO_FIX, UNKNOWN), service GPS, covariance diagonal (HDOP EPE)^2 east and north,
-  (4 HDOP EPE)^2 up, EPE 4 m for quality 1 (1e6 m when no fix), HDOP the receiver's. Latitude,
+  covariance type from the GGA quality (1 -> STATUS_FIX, 2 -> STATUS_SBAS_FIX, 4 and 5 -> STATUS_GBAS_FIX,
+  APPROXIMATED; 0 and 6, which it does not list -> STATUS_NO_FIX, UNKNOWN), service GPS, covariance diagonal
+  (HDOP EPE)^2 east and north, (4 HDOP EPE)^2 up, EPE 4 m for quality 1 (0.1 m for 2, 0.02 m for 4, 4 m for 5,
+  1e6 m when no fix), HDOP the receiver's. Latitude,
   longitude and altitude are the fix's in float64 (NaN without a position; the worlds take a geoid
   separation of 0, so altitude is the ellipsoidal height NavSatFix wants), finer than the GGA's print
   the driver would parse.

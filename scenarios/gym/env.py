@@ -11,7 +11,7 @@ Observation (Dict):
   the estimator's pose relative to the route; estimate_cov its (x, y, yaw) covariance rotated to
   (along, cross, yaw); estimate_valid 0 until the estimator has a pose (then both are zeros).
 - gps: (along m, cross m, HDOP, satellites used, age s) of the latest fix; gps_quality its GGA
-  quality (0 no fix, 1 GPS, 6 dead reckoning).
+  quality (0 no fix, 1 GPS, 2 SBAS/DGPS, 4 RTK fixed, 5 RTK float, 6 dead reckoning).
 - lidar: (32, azimuth_bins) nearest range per beam (row 0 the highest) and azimuth bin (from
   behind, counter-clockwise through ahead), metres; 0 where nothing returned.
 

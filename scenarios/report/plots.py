@@ -17,6 +17,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
+from fusion.observation import POSITION_QUALITIES
 from riverbench.angles import wrap_angle
 from riverbench.atomic import atomic_path
 from scenarios.pipeline import files
@@ -26,7 +27,14 @@ WINDOW_COLOURS = {"blackout": "#d62728", "nlos": "#ff7f0e", "reacquisition": "#e
 """Shading and highlight colour of each GPS-degradation window kind."""
 MAP_WINDOWS = ("blackout", "nlos", "injected")
 """Window kinds highlighted on the map (re-acquisition follows every blackout and would hide it)."""
-QUALITY_STYLE = {1: ("GPS fix: measured", "#4d4d4d"), 6: ("GPS fix: dead reckoning", "#a6761d")}
+QUALITY_STYLE = {
+    1: ("GPS fix: measured", "#4d4d4d"),
+    2: ("GPS fix: measured, SBAS/DGPS", "#4d4d4d"),
+    4: ("GPS fix: RTK fixed", "#252525"),
+    5: ("GPS fix: RTK float", "#969696"),
+    6: ("GPS fix: dead reckoning", "#a6761d"),
+}
+"""GGA quality -> legend label and colour of its fixes (measured ones in greys)."""
 TRACK_COLOURS = ("#1f77b4", "#2ca02c", "#9467bd", "#17becf", "#e377c2", "#393b79", "#637939", "#7b4173", "#6baed6", "#31a354")
 """Estimate and odometry colours: none of them a window colour, an outcome colour or a GPS-fix grey."""
 FAULT_M = 5.0
@@ -378,7 +386,7 @@ def hdop_figure(series: RunSeries) -> Figure | None:
     gps = series.gps
     if "hdop" not in gps:
         return None
-    measured = (gps["quality"] == 1) & np.isfinite(gps["hdop"]) & np.isfinite(gps["err_h"])
+    measured = np.isin(gps["quality"], sorted(POSITION_QUALITIES)) & np.isfinite(gps["hdop"]) & np.isfinite(gps["err_h"])
     if not measured.any():
         return None
     nlos = measured & (gps["nlos_used"] == 1)

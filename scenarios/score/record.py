@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fusion.observation import POSITION_QUALITIES
 from matcher.result import MatchResult
 from sim.gnss_fix import GnssFix
 
@@ -45,8 +46,9 @@ class FixTable:
 
     @property
     def measured(self) -> np.ndarray:
-        """Fixes with a measured position (GGA quality 1, not the receiver's dead reckoning)."""
-        return self.quality == 1
+        """Fixes with a measured position (GGA quality 1, 2, 4 or 5: autonomous, SBAS/DGPS, RTK fixed or float; not the
+        receiver's dead reckoning)."""
+        return np.isin(self.quality, sorted(POSITION_QUALITIES))
 
     @property
     def horizontal_error(self) -> np.ndarray:
@@ -181,7 +183,7 @@ class Recorder:
         add("error", np.asarray(truth.error, dtype=float) if truth is not None and fix.quality else nan3)
         add("open_sky_error", np.asarray(truth.open_sky_error, dtype=float) if truth is not None else nan3)
         nlos = {s.prn for s in truth.sats if s.nlos} if truth is not None else set()
-        add("nlos_used", bool(fix.quality == 1 and any(s.used and s.prn in nlos for s in fix.sats)))
+        add("nlos_used", bool(fix.quality in POSITION_QUALITIES and any(s.used and s.prn in nlos for s in fix.sats)))
         for eid, (trusted, statistic) in verdicts.items():
             add(f"trusted:{eid}", bool(trusted))
             add(f"stat:{eid}", float(statistic))

@@ -39,12 +39,12 @@ def find(fixes: FixTable, injected: list[tuple[float, float]], period_s: float) 
     """Every window of the run, sorted by start; a window ends at the first fix after it."""
     t = fixes.t
     out: list[Window] = []
-    blackouts = _runs(t, fixes.quality != 1, period_s, 0.0)
+    blackouts = _runs(t, ~fixes.measured, period_s, 0.0)
     out += [Window("blackout", a, b) for a, b in blackouts]
     out += [Window("nlos", a, b) for a, b in _runs(t, fixes.nlos_used, period_s, NLOS_MERGE_S)]
     added = fixes.added_error
     for _, end in blackouts:
-        after = np.nonzero((t >= end) & (t < end + REACQUISITION_MAX_S) & (fixes.quality == 1))[0]
+        after = np.nonzero((t >= end) & (t < end + REACQUISITION_MAX_S) & fixes.measured)[0]
         if not len(after):
             continue
         done = after[added[after] < REACQUIRED_M]

@@ -14,6 +14,7 @@ import matplotlib
 import numpy as np
 import rerun as rr
 
+from fusion.observation import POSITION_QUALITIES
 from fusion.verdict import Verdict
 from scenarios.pipeline.assembly import Assembly
 from scenarios.pipeline.stream import ScanEvent
@@ -111,7 +112,7 @@ class LiveView:
                 rr.Points3D([fix.enu], colors=[TRUSTED_COLOUR if trusted else REFUSED_COLOUR], radii=FIX_RADIUS),
                 rr.AnyValues(statistic=float(verdict.statistic), reason=str(verdict.reason)),
             )
-        if fix.truth is not None and fix.quality == 1:
+        if fix.truth is not None and fix.quality in POSITION_QUALITIES:
             rec.log("errors/gps", rr.Scalars(float(np.hypot(fix.truth.error[0], fix.truth.error[1]))))
 
     def close(self, keep: bool) -> None:

@@ -100,15 +100,26 @@ def _time(when: datetime) -> str:
     return f"{when:%H%M%S}.{when.microsecond // 10_000:02d}"
 
 
+def _differential(fix: Fix) -> tuple[str, str]:
+    """GGA fields 13 and 14: age of the differential corrections (s, 1 decimal) and reference station id (4 digits),
+    both empty unless the fix is differential (quality 2, 4, 5) and carries them (GnssFix.correction_age_s, .station_id)."""
+    age = getattr(fix, "correction_age_s", math.nan)
+    station = getattr(fix, "station_id", None)
+    if fix.quality not in (2, 4, 5) or age is None or not math.isfinite(age):
+        return "", ""
+    return f"{age:.1f}", "" if station is None else f"{station:04d}"
+
+
 def gga(fix: Fix) -> str:
-    """Fix data: time, position, quality, satellites used, HDOP, altitude."""
+    """Fix data: time, position, quality, satellites used, HDOP, altitude, age of corrections and their station."""
     valid = fix.quality != 0
     lat, ns = _angle(fix.lat if valid else math.nan, 2, "NS")
     lon, ew = _angle(fix.lon if valid else math.nan, 3, "EW")
     alt = _num(fix.alt if valid else math.nan, ".2f")
+    age, station = _differential(fix)
     body = (
         f"{TALKER}GGA,{_time(_utc(fix))},{lat},{ns},{lon},{ew},{fix.quality:d},{fix.num_sats:02d},"
-        f"{_num(fix.hdop, '.2f')},{alt},M,{'0.0' if alt else ''},M,,"
+        f"{_num(fix.hdop, '.2f')},{alt},M,{'0.0' if alt else ''},M,{age},{station}"
     )
     return sentence(body)
 

@@ -11,6 +11,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import PercentFormatter
 
+from fusion.observation import POSITION_QUALITIES
 from scenarios.report import document, plots
 from scenarios.report.compare.runs import RunInfo, plural
 from scenarios.score.metrics import FAULT_M, roc
@@ -60,7 +61,7 @@ def read_gps(run: RunInfo, eids: list[str]) -> dict[str, np.ndarray]:
 def monitor_roc(runs: list[RunInfo], eids: list[str], monitors: dict[str, str]) -> Roc:
     """The ROC of each estimator with a monitor over the measured fixes of all runs, pooled (faulty: > 5 m added by the environment)."""
     tables = [t for t in (read_gps(r, eids) for r in runs) if t]
-    measured = [t["quality"] == 1 for t in tables]
+    measured = [np.isin(t["quality"], sorted(POSITION_QUALITIES)) for t in tables]
     faulty = np.concatenate([t["added_err_h"][m] > FAULT_M for t, m in zip(tables, measured)]) if tables else np.zeros(0, bool)
     curves = []
     for eid in (e for e in eids if monitors.get(e, "none") != "none"):

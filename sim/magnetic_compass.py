@@ -6,7 +6,7 @@ a lock gate errs. The magnetometer measures S b + h + noise, b the true field in
 residual soft-iron matrix and h the residual hard-iron offset left after the boat's calibration (drawn
 once per run); the unit levels that with its own roll and pitch estimate (the truth plus the AHRS's
 tilt error) and turns it into a true heading with the model declination. `[compass]` in a scenario is
-CompassConfig. This is the estimators' compass; the autopilot's heading sensor is sim.compass.
+CompassConfig. This is the estimators' compass; the autopilot's heading sensor (sim.compass) is another unit of this model.
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """Ray-cast Velodyne HDL-32E: real firing geometry and timing, motion distortion, range noise and
-quantisation, water absorption, detection probability, intensity and self-occlusion."""
+quantisation, water absorption, detection probability by material and range, mixed pixels at depth
+edges (sim.beam), near-range blanking, intensity and self-occlusion."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import open3d as o3d
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from riverbench.rng import stream
+from sim.beam import edge_rays, footprint_offsets, mix
 from sim.lidar_traffic import MoverRays
 from sim.scan import POINT_DTYPE, Scan
 from sim.scene import Scene, split
@@ -65,15 +67,33 @@ class HDL32EConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     rate_hz: float = Field(10.0, ge=5.0, le=20.0, description="rotation rate (the sensor allows 5-20 Hz)")
-    range_noise_m: float = Field(0.02, ge=0, description="1-sigma Gaussian range noise (datasheet: < 2 cm)")
-    range_resolution_m: float = Field(0.002, ge=0, description="range quantum of the data packets; 0 = none")
-    min_range_m: float = Field(1.0, gt=0, description="returns closer than this are not reported")
-    max_range_m: float = Field(100.0, gt=0, description="returns beyond this are dropped")
-    range_10pct_m: float = Field(70.0, gt=0, description="range at which a 10%-reflective target at normal incidence is detected 90% of the time")
+    range_noise_m: float = Field(0.02, ge=0, description="1-sigma Gaussian range noise (HDL-32E datasheet: range accuracy < 2 cm, typical)")
+    range_resolution_m: float = Field(0.002, ge=0, description="range quantum of the data packets (user's manual: 2 mm increments); 0 = none")
+    min_range_m: float = Field(
+        1.0,
+        gt=0,
+        description="near-range blanking: returns closer are not reported (MAVS HDL-32E model, hdl32e.cpp: 1 m; the ROS velodyne driver's 32e launch drops < 0.4 m)",
+    )
+    max_range_m: float = Field(100.0, gt=0, description="returns beyond this are dropped (user's manual: usable returns up to 100 m)")
+    range_10pct_m: float = Field(
+        70.0,
+        gt=0,
+        description="range at which a 10%-reflective target at normal incidence is detected 90% of the time; detection is "
+        "1 - exp(-k * reflectivity * cos(incidence) / r^2), so a 20% target is at 90% at 99 m (datasheet: 80-100 m range)",
+    )
     dropout_rate: float = Field(0.01, ge=0, le=1, description="share of otherwise valid returns randomly lost")
     water_return_prob: float = Field(0.05, ge=0, le=1, description="probability of a water return at normal incidence (specular, absorbing)")
     water_return_exponent: float = Field(6.0, ge=0, description="water return probability falls as cos(incidence)**exponent")
     attenuation_per_m: float = Field(5e-4, ge=0, description="one-way atmospheric extinction on intensity")
+    beam_divergence_mrad: float = Field(
+        3.3,
+        ge=0,
+        le=20,
+        description="full horizontal divergence of each laser, mrad (MAVS HDL-32E model, Mississippi State Univ., "
+        "src/sensors/lidar/hdl32e.cpp: 3.3 x 0.7 mrad spot); 0 = a pencil beam, no mixed pixels",
+    )
+    footprint_samples: int = Field(3, ge=3, le=15, description="rays across a beam's footprint where it may straddle a depth edge (sim.beam)")
+    edge_gap_m: float = Field(0.2, gt=0, description="azimuth neighbours' range difference that marks a depth edge, m (sim.beam)")
     start_azimuth_deg: float = Field(180.0, description="azimuth (from lidar x, CCW) where a revolution starts")
     self_occlusion: bool = Field(True, description="rays that hit the vessel's own hull and mast return nothing")
     blinding: list[tuple[float, float]] = Field(
@@ -115,6 +135,8 @@ class HDL32E:
             axis=-1,
         )
         self._ray_dir32 = self.ray_dir.astype(np.float32)
+        self._azimuth, self._elevation = azimuth, np.broadcast_to(elevation, azimuth.shape)
+        self._footprint = footprint_offsets(cfg.beam_divergence_mrad * 1e-3, cfg.footprint_samples)
         firing = np.arange(self.n_firings + 1)
         knot_firing = np.r_[firing[::POSE_KNOT_FIRINGS], firing[-1]]
         self._knot_t = knot_firing * FIRING_CYCLE_S
@@ -142,15 +164,29 @@ class HDL32E:
         if traffic:
             movers_hit = self._mover_rays.cast(traffic, t0, knots, poses, t_hit, cos_all, cfg.max_range_m)
             primitive[movers_hit[0]] = 0  # any valid face: _surfaces relabels these rays
-        ray_index = np.flatnonzero((t_hit <= cfg.max_range_m) & self._visible(trajectory))
+        visible = self._visible(trajectory)
+        valid = (t_hit <= cfg.max_range_m) & visible
+        mixed, mixed_range, mixed_power, mixed_part = self._mixed(world, poses, t_hit, valid, visible, primitive, cos_all, movers_hit)
+        plain = valid.copy()
+        plain[mixed] = False
+        ray_index = np.flatnonzero(plain)
         part, reflectivity, water = _surfaces(world, traffic, primitive, movers_hit, ray_index)
         rng_true = t_hit[ray_index].astype(np.float64)
+        # returned power ~ reflectivity * cos(incidence) / r^2 (Lambertian target filling the beam)
+        power = reflectivity * cos_all[ray_index] / rng_true**2
+        if len(mixed):
+            order = np.argsort(np.r_[ray_index, mixed], kind="stable")
+            ray_index = np.r_[ray_index, mixed][order]
+            rng_true = np.r_[rng_true, mixed_range][order]
+            power = np.r_[power, mixed_power][order]
+            part = np.r_[part, mixed_part][order]
+            water = np.r_[water, np.zeros(len(mixed), dtype=bool)][order]
         cos_inc = cos_all[ray_index]
 
         # one stream per revolution, so a scan depends only on (seed, t0), not on the call order
         rng = stream(cfg.seed, f"sim.lidar@{t0:.9f}")
         draw = rng.random(len(rng_true))
-        p_return = (1.0 - cfg.dropout_rate) * -np.expm1(-self._detect_k * reflectivity * cos_inc / rng_true**2)
+        p_return = (1.0 - cfg.dropout_rate) * -np.expm1(-self._detect_k * power)
         p_return[water] = cfg.water_return_prob * cos_inc[water] ** cfg.water_return_exponent
         if self._blinded(t0):
             p_return = p_return * cfg.blinding_keep
@@ -165,12 +201,60 @@ class HDL32E:
         points = np.empty(len(ranges), dtype=POINT_DTYPE)
         local = self.ray_dir.reshape(-1, 3)[ray_index] * ranges[:, None]
         points["x"], points["y"], points["z"] = local.T
-        inc = cos_inc[returned][in_range]
-        points["intensity"] = 100.0 * reflectivity[returned][in_range] * inc * np.exp(-2 * cfg.attenuation_per_m * ranges)
+        # reflectivity * cos(incidence) of the lit surface (for a mixed pixel, its footprint's mean)
+        lit = (power * rng_true**2)[returned][in_range]
+        points["intensity"] = 100.0 * lit * np.exp(-2 * cfg.attenuation_per_m * ranges)
         points["ring"] = ray_index % 32
         points["time"] = self.ray_time.ravel()[ray_index]
         points["label"] = part[returned][in_range]
         return Scan(stamp=float(t0), points=points)
+
+    def _mixed(
+        self,
+        world: World,
+        poses: np.ndarray,
+        t_hit: np.ndarray,
+        valid: np.ndarray,
+        visible: np.ndarray,
+        primitive: np.ndarray,
+        cos_all: np.ndarray,
+        movers_hit: tuple[np.ndarray, np.ndarray] | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Rays whose footprint straddles a depth edge and returns power (sorted), with their mixed range, mean
+        power and label (sim.beam). Rays that hit a mover keep their plain return (the footprint sees the world only)."""
+        cfg = self.config
+        none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.float32), np.zeros(0, dtype=np.uint16)
+        if cfg.beam_divergence_mrad == 0.0:
+            return none
+        edge = edge_rays(t_hit.reshape(-1, 32), valid.reshape(-1, 32), cfg.edge_gap_m).ravel() & visible
+        if movers_hit is not None:
+            edge[movers_hit[0]] = False
+        rays = np.flatnonzero(edge)
+        if not len(rays):
+            return none
+        firing, laser = np.divmod(rays, 32)
+        azimuth = self._azimuth[firing, laser][:, None] + self._footprint[None, :]
+        elevation = self._elevation[firing, laser][:, None]
+        local = np.stack(
+            [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.broadcast_to(np.sin(elevation), azimuth.shape)], axis=-1
+        ).astype(np.float32)
+        sub = np.empty(local.shape[:2] + (6,), dtype=np.float32)
+        sub[..., :3] = poses[firing, None, :3, 3]
+        sub[..., 3:] = np.einsum("mij,mkj->mki", poses[firing, :3, :3].astype(np.float32), local)
+        hit = world.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(sub.reshape(-1, 6)))
+        k = len(self._footprint)
+        t = np.c_[t_hit[rays], hit["t_hit"].numpy().reshape(-1, k)].astype(np.float64)
+        face = np.c_[primitive[rays], hit["primitive_ids"].numpy().reshape(-1, k)]
+        cos = np.c_[cos_all[rays], np.abs(np.einsum("mkj,mkj->mk", hit["primitive_normals"].numpy().reshape(-1, k, 3), sub[..., 3:]))]
+        returns = t <= cfg.max_range_m
+        returns[:, 0] &= valid[rays]
+        face = np.where(returns, face, 0)
+        returns &= ~world.face_is_water[face]
+        power = np.where(returns, world.face_reflectivity[face] * cos / np.where(returns, t, 1.0) ** 2, 0.0)
+        mean_power, mixed_range, strongest = mix(t, power)
+        keep = mean_power > 0
+        part = world.face_part[face[np.arange(len(rays)), strongest]]
+        return rays[keep], mixed_range[keep], mean_power[keep].astype(np.float32), part[keep]
 
     def rays(self, trajectory, t0: float) -> np.ndarray:
         """(n_firings * 32, 6) float32 world rays (origin, unit direction) of the revolution at t0."""
@@ -219,8 +303,8 @@ def _surfaces(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Label, reflectivity and water flag of each returned ray (ray_index, sorted) from the world face it hit, then,
     for the rays a mover hit first (movers_hit: sorted rays, mover index), mover i as label len(world.parts) + i."""
-    part = world.face_part[primitive[ray_index]]
-    reflectivity, water = world.part_reflectivity[part], world.part_is_water[part]
+    face = primitive[ray_index]
+    part, reflectivity, water = world.face_part[face], world.face_reflectivity[face], world.face_is_water[face]
     if movers_hit is not None:
         rays, mover = movers_hit
         at = np.minimum(np.searchsorted(ray_index, rays), len(ray_index) - 1)

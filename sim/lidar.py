@@ -61,6 +61,19 @@ FIRING_CYCLE_S = 46.080e-6  # one firing sequence of all 32 lasers plus recharge
 POSE_KNOT_FIRINGS = 8
 
 
+def detection_constant(range_10pct_m: float) -> float:
+    """k of `detection_probability` such that a 10%-reflective target at normal incidence at range_10pct_m is
+    detected 90% of the time."""
+    return float(-np.log(0.1) * range_10pct_m**2 / 0.1)
+
+
+def detection_probability(power: np.ndarray, k: float, dropout_rate: float = 0.0) -> np.ndarray:
+    """Probability that a return of power ~ reflectivity * cos(incidence) / r^2 is reported: 1 - exp(-k * power),
+    near 1 for strong returns and falling as the power nears the detector's threshold (~1/k), times the share
+    `dropout_rate` lost at random."""
+    return (1.0 - dropout_rate) * -np.expm1(-k * np.asarray(power))
+
+
 class HDL32EConfig(BaseModel):
     """Sensor parameters; defaults from the HDL-32E datasheet unless noted."""
 
@@ -72,7 +85,8 @@ class HDL32EConfig(BaseModel):
     min_range_m: float = Field(
         1.0,
         gt=0,
-        description="near-range blanking: returns closer are not reported (MAVS HDL-32E model, hdl32e.cpp: 1 m; the ROS velodyne driver's 32e launch drops < 0.4 m)",
+        description="near-range blanking: returns closer are not reported (MAVS HDL-32E model, hdl32e.cpp: 1 m; "
+        "the ROS velodyne driver's 32e launch drops < 0.4 m)",
     )
     max_range_m: float = Field(100.0, gt=0, description="returns beyond this are dropped (user's manual: usable returns up to 100 m)")
     range_10pct_m: float = Field(
@@ -143,7 +157,7 @@ class HDL32E:
         self._knot_index = np.minimum(firing // POSE_KNOT_FIRINGS, len(self._knot_t) - 2)
         self._knot_frac = (firing * FIRING_CYCLE_S - self._knot_t[self._knot_index]) / np.diff(self._knot_t)[self._knot_index]
         self._mover_rays = MoverRays(self.ray_dir, azimuth, knot_firing, FIRING_CYCLE_S)
-        self._detect_k = -np.log(0.1) * cfg.range_10pct_m**2 / 0.1
+        self._detect_k = detection_constant(cfg.range_10pct_m)
         self._occlusion: dict[bytes, np.ndarray] = {}
 
     def scan(self, world: World | Scene, trajectory, t0: float) -> Scan:
@@ -186,7 +200,7 @@ class HDL32E:
         # one stream per revolution, so a scan depends only on (seed, t0), not on the call order
         rng = stream(cfg.seed, f"sim.lidar@{t0:.9f}")
         draw = rng.random(len(rng_true))
-        p_return = (1.0 - cfg.dropout_rate) * -np.expm1(-self._detect_k * power)
+        p_return = detection_probability(power, self._detect_k, cfg.dropout_rate)
         p_return[water] = cfg.water_return_prob * cos_inc[water] ** cfg.water_return_exponent
         if self._blinded(t0):
             p_return = p_return * cfg.blinding_keep

@@ -52,9 +52,7 @@ TIMBER = Material("timber", reflectivity=0.30, gnss_reflective=False, source=f"{
 GRASS = Material("grass", reflectivity=0.45, gnss_reflective=False, source=f"{LIB}: green grass")
 SOIL = Material("soil", reflectivity=0.20, gnss_reflective=False, source=f"{LIB}: brown loam")
 # broadleaf foliage at 905 nm: ~0.45 (leaves reflect 0.4-0.5 in the near infrared, e.g. the PROSPECT model)
-VEGETATION = Material(
-    "vegetation", reflectivity=0.45, gnss_reflective=False, foliage=True, source=f"{LIB}: deciduous leaves; PROSPECT"
-)
+VEGETATION = Material("vegetation", reflectivity=0.45, gnss_reflective=False, foliage=True, source=f"{LIB}: deciduous leaves; PROSPECT")
 # white gelcoat / hull paint: bright, but a curved dielectric that scatters L1 rather than mirroring it
 FIBREGLASS = Material("fibreglass", reflectivity=0.55, gnss_reflective=False, source="white gelcoat / hull paint (bright in the near infrared)")
 ALUMINIUM = Material("aluminium", reflectivity=0.40, gnss_reflective=True, source=f"{LIB}: weathered aluminium")

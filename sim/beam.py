@@ -20,26 +20,33 @@ from __future__ import annotations
 import numpy as np
 
 
-def edge_rays(t_hit: np.ndarray, valid: np.ndarray, gap_m: float) -> np.ndarray:
-    """(n_firings, 32) True for rays at a depth edge along their laser's sweep: a return next to a ray that
-    returns nothing (or the reverse), or a kink in range where the second difference over the ray and its two
-    azimuth neighbours exceeds gap_m. A smooth surface, even at grazing incidence, has a range that changes
-    almost linearly from ray to ray, so it is no edge; a step of J metres gives second differences of +-J
-    on both rays beside it."""
+def edge_sides(t_hit: np.ndarray, valid: np.ndarray, gap_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(n_firings, 32) each: rays at a depth edge shared with the previous firing's ray of their laser, and
+    with the next one's. A ray is at a depth edge when it returns and a neighbour does not (or the reverse),
+    or when its range kinks: the second difference over the ray and its two azimuth neighbours exceeds gap_m.
+    A smooth surface, even at grazing incidence, has a range that changes almost linearly from ray to ray,
+    so it is no edge; a step of J metres gives second differences of +-J on both rays beside it. The edge
+    lies on the side(s) where validity changes or the range steps by more than gap_m / 2."""
     r = np.where(valid, t_hit, 0.0)
-    edge = np.zeros_like(valid)
-    lit = valid[1:-1]
-    either = valid[:-2] | valid[2:]
-    edge[1:-1] = (lit != valid[:-2]) | (lit != valid[2:])
-    kink = np.abs(r[:-2] - 2.0 * r[1:-1] + r[2:]) > gap_m
-    edge[1:-1] |= lit & valid[:-2] & valid[2:] & kink
-    edge[1:-1] &= lit | either
-    return edge
+    lit, prev, nxt = valid[1:-1], valid[:-2], valid[2:]
+    kink = lit & prev & nxt & (np.abs(r[:-2] - 2.0 * r[1:-1] + r[2:]) > gap_m)
+    step_prev = (lit != prev) | (kink & (np.abs(r[1:-1] - r[:-2]) > 0.5 * gap_m))
+    step_next = (lit != nxt) | (kink & (np.abs(r[2:] - r[1:-1]) > 0.5 * gap_m))
+    before, after = np.zeros_like(valid), np.zeros_like(valid)
+    before[1:-1], after[1:-1] = step_prev, step_next
+    return before, after
+
+
+def edge_rays(t_hit: np.ndarray, valid: np.ndarray, gap_m: float) -> np.ndarray:
+    """(n_firings, 32) True for rays at a depth edge on either side (see `edge_sides`)."""
+    before, after = edge_sides(t_hit, valid, gap_m)
+    return before | after
 
 
 def footprint_offsets(divergence_rad: float, samples: int) -> np.ndarray:
     """Azimuth offsets (rad) of the footprint's samples other than the beam's centre: the centres of `samples`
-    equal slices of the strip, the middle one (offset 0) being the beam's own ray."""
+    equal slices of the strip, the middle one (offset 0) being the beam's own ray. The head spins clockwise,
+    so a positive offset looks towards the previous firing."""
     k = np.arange(samples) - (samples - 1) / 2
     offsets = k * divergence_rad / samples
     return offsets[offsets != 0.0]

@@ -9,7 +9,7 @@ import open3d as o3d
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from riverbench.rng import stream
-from sim.beam import edge_rays, footprint_offsets, mix
+from sim.beam import edge_sides, footprint_offsets, mix
 from sim.lidar_traffic import MoverRays
 from sim.scan import POINT_DTYPE, Scan
 from sim.scene import Scene, split
@@ -181,20 +181,20 @@ class HDL32E:
         visible = self._visible(trajectory)
         valid = (t_hit <= cfg.max_range_m) & visible
         mixed, mixed_range, mixed_power, mixed_part = self._mixed(world, poses, t_hit, valid, visible, primitive, cos_all, movers_hit)
-        plain = valid.copy()
-        plain[mixed] = False
-        ray_index = np.flatnonzero(plain)
-        part, reflectivity, water = _surfaces(world, traffic, primitive, movers_hit, ray_index)
+        is_mixed = np.zeros_like(valid)
+        is_mixed[mixed] = True
+        ray_index = np.flatnonzero(valid | is_mixed)
+        at_mixed = is_mixed[ray_index]
+        at_plain = ~at_mixed
+        plain = ray_index[at_plain]
+        part = np.zeros(len(ray_index), dtype=np.uint16)
+        reflectivity = np.zeros(len(ray_index), dtype=np.float32)
+        water = np.zeros(len(ray_index), dtype=bool)
+        part[at_plain], reflectivity[at_plain], water[at_plain] = _surfaces(world, traffic, primitive, movers_hit, plain)
         rng_true = t_hit[ray_index].astype(np.float64)
         # returned power ~ reflectivity * cos(incidence) / r^2 (Lambertian target filling the beam)
         power = reflectivity * cos_all[ray_index] / rng_true**2
-        if len(mixed):
-            order = np.argsort(np.r_[ray_index, mixed], kind="stable")
-            ray_index = np.r_[ray_index, mixed][order]
-            rng_true = np.r_[rng_true, mixed_range][order]
-            power = np.r_[power, mixed_power][order]
-            part = np.r_[part, mixed_part][order]
-            water = np.r_[water, np.zeros(len(mixed), dtype=bool)][order]
+        rng_true[at_mixed], power[at_mixed], part[at_mixed] = mixed_range, mixed_power, mixed_part
         cos_inc = cos_all[ray_index]
 
         # one stream per revolution, so a scan depends only on (seed, t0), not on the call order
@@ -240,26 +240,33 @@ class HDL32E:
         none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.float32), np.zeros(0, dtype=np.uint16)
         if cfg.beam_divergence_mrad == 0.0:
             return none
-        edge = edge_rays(t_hit.reshape(-1, 32), valid.reshape(-1, 32), cfg.edge_gap_m).ravel() & visible
+        before, after = (side.ravel() for side in edge_sides(t_hit.reshape(-1, 32), valid.reshape(-1, 32), cfg.edge_gap_m))
+        edge = (before | after) & visible
         if movers_hit is not None:
             edge[movers_hit[0]] = False
         rays = np.flatnonzero(edge)
         if not len(rays):
             return none
-        firing, laser = np.divmod(rays, 32)
-        azimuth = self._azimuth[firing, laser][:, None] + self._footprint[None, :]
-        elevation = self._elevation[firing, laser][:, None]
-        local = np.stack(
-            [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.broadcast_to(np.sin(elevation), azimuth.shape)], axis=-1
-        ).astype(np.float32)
-        sub = np.empty(local.shape[:2] + (6,), dtype=np.float32)
-        sub[..., :3] = poses[firing, None, :3, 3]
-        sub[..., 3:] = np.einsum("mij,mkj->mki", poses[firing, :3, :3].astype(np.float32), local)
-        hit = world.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(sub.reshape(-1, 6)))
-        k = len(self._footprint)
-        t = np.c_[t_hit[rays], hit["t_hit"].numpy().reshape(-1, k)].astype(np.float64)
-        face = np.c_[primitive[rays], hit["primitive_ids"].numpy().reshape(-1, k)]
-        cos = np.c_[cos_all[rays], np.abs(np.einsum("mkj,mkj->mk", hit["primitive_normals"].numpy().reshape(-1, k, 3), sub[..., 3:]))]
+        # cast only the samples on an edge's side; those on the other side lie on the centre's surface
+        toward_before = self._footprint[None, :] > 0
+        pair, k = np.nonzero(np.where(toward_before, before[rays, None], after[rays, None]))
+        firing, laser = np.divmod(rays[pair], 32)
+        azimuth = self._azimuth[firing, laser] + self._footprint[k]
+        elevation = self._elevation[firing, laser]
+        local = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], axis=-1).astype(np.float32)
+        sub = np.empty((len(pair), 6), dtype=np.float32)
+        sub[:, :3] = poses[firing, :3, 3]
+        sub[:, 3:] = np.einsum("nij,nj->ni", poses[firing, :3, :3].astype(np.float32), local)
+        hit = world.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(sub))
+        width = 1 + len(self._footprint)
+        t = np.repeat(t_hit[rays, None].astype(np.float64), width, axis=1)
+        face = np.repeat(primitive[rays, None], width, axis=1)
+        cos = np.repeat(cos_all[rays, None], width, axis=1)
+        t[pair, 1 + k] = hit["t_hit"].numpy()
+        face[pair, 1 + k] = hit["primitive_ids"].numpy()
+        cos[pair, 1 + k] = np.abs(np.einsum("nj,nj->n", hit["primitive_normals"].numpy(), sub[:, 3:]))
+        returns = t <= cfg.max_range_m
+        returns[:, 0] &= valid[rays]
         returns = t <= cfg.max_range_m
         returns[:, 0] &= valid[rays]
         face = np.where(returns, face, 0)

@@ -267,8 +267,6 @@ class HDL32E:
         cos[pair, 1 + k] = np.abs(np.einsum("nj,nj->n", hit["primitive_normals"].numpy(), sub[:, 3:]))
         returns = t <= cfg.max_range_m
         returns[:, 0] &= valid[rays]
-        returns = t <= cfg.max_range_m
-        returns[:, 0] &= valid[rays]
         face = np.where(returns, face, 0)
         returns &= ~world.face_is_water[face]
         power = np.where(returns, world.face_reflectivity[face] * cos / np.where(returns, t, 1.0) ** 2, 0.0)

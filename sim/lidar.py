@@ -1,5 +1,6 @@
 """Ray-cast Velodyne HDL-32E: real firing geometry and timing, motion distortion, range noise and
-quantisation, water absorption, detection probability, intensity and self-occlusion."""
+quantisation, water absorption, detection probability by material and range, mixed pixels at depth
+edges (sim.beam), near-range blanking, intensity and self-occlusion."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import open3d as o3d
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from riverbench.rng import stream
+from sim.beam import edge_sides, footprint_offsets, mix
 from sim.lidar_traffic import MoverRays
 from sim.scan import POINT_DTYPE, Scan
 from sim.scene import Scene, split
@@ -59,21 +61,53 @@ FIRING_CYCLE_S = 46.080e-6  # one firing sequence of all 32 lasers plus recharge
 POSE_KNOT_FIRINGS = 8
 
 
+def detection_constant(range_10pct_m: float) -> float:
+    """k of `detection_probability` such that a 10%-reflective target at normal incidence at range_10pct_m is
+    detected 90% of the time."""
+    return float(-np.log(0.1) * range_10pct_m**2 / 0.1)
+
+
+def detection_probability(power: np.ndarray, k: float, dropout_rate: float = 0.0) -> np.ndarray:
+    """Probability that a return of power ~ reflectivity * cos(incidence) / r^2 is reported: 1 - exp(-k * power),
+    near 1 for strong returns and falling as the power nears the detector's threshold (~1/k), times the share
+    `dropout_rate` lost at random."""
+    return (1.0 - dropout_rate) * -np.expm1(-k * np.asarray(power))
+
+
 class HDL32EConfig(BaseModel):
     """Sensor parameters; defaults from the HDL-32E datasheet unless noted."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     rate_hz: float = Field(10.0, ge=5.0, le=20.0, description="rotation rate (the sensor allows 5-20 Hz)")
-    range_noise_m: float = Field(0.02, ge=0, description="1-sigma Gaussian range noise (datasheet: < 2 cm)")
-    range_resolution_m: float = Field(0.002, ge=0, description="range quantum of the data packets; 0 = none")
-    min_range_m: float = Field(1.0, gt=0, description="returns closer than this are not reported")
-    max_range_m: float = Field(100.0, gt=0, description="returns beyond this are dropped")
-    range_10pct_m: float = Field(70.0, gt=0, description="range at which a 10%-reflective target at normal incidence is detected 90% of the time")
+    range_noise_m: float = Field(0.02, ge=0, description="1-sigma Gaussian range noise (HDL-32E datasheet: range accuracy < 2 cm, typical)")
+    range_resolution_m: float = Field(0.002, ge=0, description="range quantum of the data packets (user's manual: 2 mm increments); 0 = none")
+    min_range_m: float = Field(
+        1.0,
+        gt=0,
+        description="near-range blanking: returns closer are not reported (MAVS HDL-32E model, hdl32e.cpp: 1 m; "
+        "the ROS velodyne driver's 32e launch drops < 0.4 m)",
+    )
+    max_range_m: float = Field(100.0, gt=0, description="returns beyond this are dropped (user's manual: usable returns up to 100 m)")
+    range_10pct_m: float = Field(
+        70.0,
+        gt=0,
+        description="range at which a 10%-reflective target at normal incidence is detected 90% of the time; detection is "
+        "1 - exp(-k * reflectivity * cos(incidence) / r^2), so a 20% target is at 90% at 99 m (datasheet: 80-100 m range)",
+    )
     dropout_rate: float = Field(0.01, ge=0, le=1, description="share of otherwise valid returns randomly lost")
     water_return_prob: float = Field(0.05, ge=0, le=1, description="probability of a water return at normal incidence (specular, absorbing)")
     water_return_exponent: float = Field(6.0, ge=0, description="water return probability falls as cos(incidence)**exponent")
     attenuation_per_m: float = Field(5e-4, ge=0, description="one-way atmospheric extinction on intensity")
+    beam_divergence_mrad: float = Field(
+        3.3,
+        ge=0,
+        le=20,
+        description="full horizontal divergence of each laser, mrad (MAVS HDL-32E model, Mississippi State Univ., "
+        "src/sensors/lidar/hdl32e.cpp: 3.3 x 0.7 mrad spot); 0 = a pencil beam, no mixed pixels",
+    )
+    footprint_samples: int = Field(3, ge=3, le=15, description="rays across a beam's footprint where it may straddle a depth edge (sim.beam)")
+    edge_gap_m: float = Field(0.2, gt=0, description="azimuth neighbours' range difference that marks a depth edge, m (sim.beam)")
     start_azimuth_deg: float = Field(180.0, description="azimuth (from lidar x, CCW) where a revolution starts")
     self_occlusion: bool = Field(True, description="rays that hit the vessel's own hull and mast return nothing")
     blinding: list[tuple[float, float]] = Field(
@@ -115,13 +149,15 @@ class HDL32E:
             axis=-1,
         )
         self._ray_dir32 = self.ray_dir.astype(np.float32)
+        self._azimuth, self._elevation = azimuth, np.broadcast_to(elevation, azimuth.shape)
+        self._footprint = footprint_offsets(cfg.beam_divergence_mrad * 1e-3, cfg.footprint_samples)
         firing = np.arange(self.n_firings + 1)
         knot_firing = np.r_[firing[::POSE_KNOT_FIRINGS], firing[-1]]
         self._knot_t = knot_firing * FIRING_CYCLE_S
         self._knot_index = np.minimum(firing // POSE_KNOT_FIRINGS, len(self._knot_t) - 2)
         self._knot_frac = (firing * FIRING_CYCLE_S - self._knot_t[self._knot_index]) / np.diff(self._knot_t)[self._knot_index]
         self._mover_rays = MoverRays(self.ray_dir, azimuth, knot_firing, FIRING_CYCLE_S)
-        self._detect_k = -np.log(0.1) * cfg.range_10pct_m**2 / 0.1
+        self._detect_k = detection_constant(cfg.range_10pct_m)
         self._occlusion: dict[bytes, np.ndarray] = {}
 
     def scan(self, world: World | Scene, trajectory, t0: float) -> Scan:
@@ -142,15 +178,29 @@ class HDL32E:
         if traffic:
             movers_hit = self._mover_rays.cast(traffic, t0, knots, poses, t_hit, cos_all, cfg.max_range_m)
             primitive[movers_hit[0]] = 0  # any valid face: _surfaces relabels these rays
-        ray_index = np.flatnonzero((t_hit <= cfg.max_range_m) & self._visible(trajectory))
-        part, reflectivity, water = _surfaces(world, traffic, primitive, movers_hit, ray_index)
+        visible = self._visible(trajectory)
+        valid = (t_hit <= cfg.max_range_m) & visible
+        mixed, mixed_range, mixed_power, mixed_part = self._mixed(world, poses, t_hit, valid, visible, primitive, cos_all, movers_hit)
+        is_mixed = np.zeros_like(valid)
+        is_mixed[mixed] = True
+        ray_index = np.flatnonzero(valid | is_mixed)
+        at_mixed = is_mixed[ray_index]
+        at_plain = ~at_mixed
+        plain = ray_index[at_plain]
+        part = np.zeros(len(ray_index), dtype=np.uint16)
+        reflectivity = np.zeros(len(ray_index), dtype=np.float32)
+        water = np.zeros(len(ray_index), dtype=bool)
+        part[at_plain], reflectivity[at_plain], water[at_plain] = _surfaces(world, traffic, primitive, movers_hit, plain)
         rng_true = t_hit[ray_index].astype(np.float64)
+        # returned power ~ reflectivity * cos(incidence) / r^2 (Lambertian target filling the beam)
+        power = reflectivity * cos_all[ray_index] / rng_true**2
+        rng_true[at_mixed], power[at_mixed], part[at_mixed] = mixed_range, mixed_power, mixed_part
         cos_inc = cos_all[ray_index]
 
         # one stream per revolution, so a scan depends only on (seed, t0), not on the call order
         rng = stream(cfg.seed, f"sim.lidar@{t0:.9f}")
         draw = rng.random(len(rng_true))
-        p_return = (1.0 - cfg.dropout_rate) * -np.expm1(-self._detect_k * reflectivity * cos_inc / rng_true**2)
+        p_return = detection_probability(power, self._detect_k, cfg.dropout_rate)
         p_return[water] = cfg.water_return_prob * cos_inc[water] ** cfg.water_return_exponent
         if self._blinded(t0):
             p_return = p_return * cfg.blinding_keep
@@ -165,12 +215,65 @@ class HDL32E:
         points = np.empty(len(ranges), dtype=POINT_DTYPE)
         local = self.ray_dir.reshape(-1, 3)[ray_index] * ranges[:, None]
         points["x"], points["y"], points["z"] = local.T
-        inc = cos_inc[returned][in_range]
-        points["intensity"] = 100.0 * reflectivity[returned][in_range] * inc * np.exp(-2 * cfg.attenuation_per_m * ranges)
+        # reflectivity * cos(incidence) of the lit surface (for a mixed pixel, its footprint's mean)
+        lit = (power * rng_true**2)[returned][in_range]
+        points["intensity"] = 100.0 * lit * np.exp(-2 * cfg.attenuation_per_m * ranges)
         points["ring"] = ray_index % 32
         points["time"] = self.ray_time.ravel()[ray_index]
         points["label"] = part[returned][in_range]
         return Scan(stamp=float(t0), points=points)
+
+    def _mixed(
+        self,
+        world: World,
+        poses: np.ndarray,
+        t_hit: np.ndarray,
+        valid: np.ndarray,
+        visible: np.ndarray,
+        primitive: np.ndarray,
+        cos_all: np.ndarray,
+        movers_hit: tuple[np.ndarray, np.ndarray] | None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Rays whose footprint straddles a depth edge and returns power (sorted), with their mixed range, mean
+        power and label (sim.beam). Rays that hit a mover keep their plain return (the footprint sees the world only)."""
+        cfg = self.config
+        none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.float32), np.zeros(0, dtype=np.uint16)
+        if cfg.beam_divergence_mrad == 0.0:
+            return none
+        before, after = (side.ravel() for side in edge_sides(t_hit.reshape(-1, 32), valid.reshape(-1, 32), cfg.edge_gap_m))
+        edge = (before | after) & visible
+        if movers_hit is not None:
+            edge[movers_hit[0]] = False
+        rays = np.flatnonzero(edge)
+        if not len(rays):
+            return none
+        # cast only the samples on an edge's side; those on the other side lie on the centre's surface
+        toward_before = self._footprint[None, :] > 0
+        pair, k = np.nonzero(np.where(toward_before, before[rays, None], after[rays, None]))
+        firing, laser = np.divmod(rays[pair], 32)
+        azimuth = self._azimuth[firing, laser] + self._footprint[k]
+        elevation = self._elevation[firing, laser]
+        local = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], axis=-1).astype(np.float32)
+        sub = np.empty((len(pair), 6), dtype=np.float32)
+        sub[:, :3] = poses[firing, :3, 3]
+        sub[:, 3:] = np.einsum("nij,nj->ni", poses[firing, :3, :3].astype(np.float32), local)
+        hit = world.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(sub))
+        width = 1 + len(self._footprint)
+        t = np.repeat(t_hit[rays, None].astype(np.float64), width, axis=1)
+        face = np.repeat(primitive[rays, None], width, axis=1)
+        cos = np.repeat(cos_all[rays, None], width, axis=1)
+        t[pair, 1 + k] = hit["t_hit"].numpy()
+        face[pair, 1 + k] = hit["primitive_ids"].numpy()
+        cos[pair, 1 + k] = np.abs(np.einsum("nj,nj->n", hit["primitive_normals"].numpy(), sub[:, 3:]))
+        returns = t <= cfg.max_range_m
+        returns[:, 0] &= valid[rays]
+        face = np.where(returns, face, 0)
+        returns &= ~world.face_is_water[face]
+        power = np.where(returns, world.face_reflectivity[face] * cos / np.where(returns, t, 1.0) ** 2, 0.0)
+        mean_power, mixed_range, strongest = mix(t, power)
+        keep = mean_power > 0
+        part = world.face_part[face[np.arange(len(rays)), strongest]]
+        return rays[keep], mixed_range[keep], mean_power[keep].astype(np.float32), part[keep]
 
     def rays(self, trajectory, t0: float) -> np.ndarray:
         """(n_firings * 32, 6) float32 world rays (origin, unit direction) of the revolution at t0."""
@@ -219,8 +322,8 @@ def _surfaces(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Label, reflectivity and water flag of each returned ray (ray_index, sorted) from the world face it hit, then,
     for the rays a mover hit first (movers_hit: sorted rays, mover index), mover i as label len(world.parts) + i."""
-    part = world.face_part[primitive[ray_index]]
-    reflectivity, water = world.part_reflectivity[part], world.part_is_water[part]
+    face = primitive[ray_index]
+    part, reflectivity, water = world.face_part[face], world.face_reflectivity[face], world.face_is_water[face]
     if movers_hit is not None:
         rays, mover = movers_hit
         at = np.minimum(np.searchsorted(ray_index, rays), len(ray_index) - 1)

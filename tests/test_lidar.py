@@ -9,7 +9,7 @@ from sim.lidar import FIRING_CYCLE_S, HDL32E, HDL32E_ELEVATION_DEG, LASER_INTERV
 from sim.trajectory import Trajectory
 from worlds.materials import GLASS
 
-EXACT = dict(range_noise_m=0.0, range_resolution_m=0.0, dropout_rate=0.0)
+EXACT = dict(range_noise_m=0.0, range_resolution_m=0.0, dropout_rate=0.0, beam_divergence_mrad=0.0)  # an ideal pencil beam
 
 
 def to_world(traj, scan):
@@ -44,7 +44,7 @@ def test_wall_ranges_are_exact_without_noise_and_points_lie_on_the_face(wall):
 def test_wall_range_noise_has_the_configured_sigma_and_2mm_quantum(wall):
     world, traj = wall
     exact = HDL32E(**EXACT, seed=1).scan(world, traj, 5.0)
-    noisy = HDL32E(range_noise_m=0.02, dropout_rate=0.0, seed=1).scan(world, traj, 5.0)
+    noisy = HDL32E(range_noise_m=0.02, dropout_rate=0.0, beam_divergence_mrad=0.0, seed=1).scan(world, traj, 5.0)
     assert len(noisy) == len(exact)  # noise is drawn after the same detection draws
     r_exact = np.linalg.norm(exact.xyz, axis=1)
     r_noisy = np.linalg.norm(noisy.xyz, axis=1)

@@ -12,7 +12,7 @@ import trimesh
 from pydantic import BaseModel, ConfigDict, Field
 
 from worlds.assemble import BOSTON_BU_BRIDGE
-from worlds.materials import MATERIALS
+from worlds.materials import material_named
 from worlds.params import validate
 from worlds.route import Route
 from worlds.world import PART_KINDS, Part, World
@@ -71,15 +71,14 @@ def world_from_file(path: str | os.PathLike, **params) -> World:
     `route=[[x, y], ...]` for anything but a quick look.
     """
     p = validate(FileWorldParams, params, f"world file {str(path)!r}")
-    if p.material not in MATERIALS:
-        raise ValueError(f"world file {str(path)!r}: unknown material {p.material!r} (one of {', '.join(sorted(MATERIALS))})")
+    mat = material_named(p.material, f"world file {str(path)!r}")
     mesh = read_mesh(path)
     if p.route is None:
         wp, half = _default_route(mesh)
     else:
         wp, half = np.asarray(p.route, float), 0.5 * float(np.ptp(mesh.bounds[:, :2], axis=0).min())
     route = Route.from_waypoints(wp, p.left_m or half, p.right_m or half)
-    part = Part(Path(path).stem, "other", MATERIALS[p.material], mesh)
+    part = Part(Path(path).stem, "other", mat, mesh)
     return World(
         name=Path(path).stem, parts=[part], route=route, origin=p.origin, params={"file": str(Path(path).resolve())} | p.model_dump(mode="json")
     )
@@ -96,15 +95,14 @@ def add_mesh_part(
     """A new world: `world` plus the mesh in `path` as one part (kind, material, optional 4x4 transform)."""
     if kind not in PART_KINDS:
         raise ValueError(f"add_mesh_part: unknown kind {kind!r} (one of {', '.join(PART_KINDS)})")
-    if material not in MATERIALS:
-        raise ValueError(f"add_mesh_part: unknown material {material!r} (one of {', '.join(sorted(MATERIALS))})")
+    mat = material_named(material, "add_mesh_part")
     mesh = read_mesh(path)
     if transform is not None:
         transform = np.asarray(transform, float)
         if transform.shape != (4, 4) or not np.isfinite(transform).all():
             raise ValueError("add_mesh_part: transform must be a finite 4x4 matrix")
         mesh.apply_transform(transform)
-    part = Part(name or Path(path).stem, kind, MATERIALS[material], mesh)
+    part = Part(name or Path(path).stem, kind, mat, mesh)
     extra = {"file": str(Path(path).resolve()), "name": part.name, "kind": kind, "material": material}
     params = world.params | {"extra_parts": [*world.params.get("extra_parts", []), extra]}
     return dataclasses.replace(world, parts=[*world.parts, part], params=params)

@@ -99,6 +99,16 @@ class World:
         return np.array([p.material.reflectivity for p in self.parts], dtype=np.float32)
 
     @cached_property
+    def face_reflectivity(self) -> np.ndarray:
+        """905 nm reflectivity of every face of `mesh` (float32): the per-triangle material lookup of a ray hit."""
+        return self.part_reflectivity[self.face_part]
+
+    @cached_property
+    def face_is_water(self) -> np.ndarray:
+        """True for every face of `mesh` on a water surface."""
+        return self.part_is_water[self.face_part]
+
+    @cached_property
     def part_is_water(self) -> np.ndarray:
         """True per part index for water surfaces."""
         return np.array([p.material.water for p in self.parts], dtype=bool)

@@ -93,13 +93,15 @@ class Ephemeris:
         return [(s, int(p)) for s in letters if s in self.systems for p in np.unique(self.systems[s].prn[self.systems[s].healthy])]
 
     def span_s(self, letters: str) -> tuple[float, float]:
-        """GPS seconds from the latest start to the earliest end of the given systems' healthy records' validity."""
+        """GPS seconds from the latest start to the earliest end of the given systems' validity (per system the median over its
+        satellites of the start of their first healthy record's validity and the end of their last's: one satellite's stray
+        early or late upload does not stretch the span)."""
         missing = [SYSTEMS[s] for s in letters if s not in self.systems or not self.systems[s].healthy.any()]
         if missing:
             raise EphemerisError(f"ephemeris file {self.name} has no healthy records of {', '.join(missing)}")
         present = [self.systems[s] for s in letters]
-        start = max(float(np.min((s.ref_s - s.max_age_s)[s.healthy])) for s in present)
-        end = min(float(np.max((s.ref_s + s.max_age_s)[s.healthy])) for s in present)
+        start = max(_median_per_satellite(s, s.ref_s - s.max_age_s, np.min) for s in present)
+        end = min(_median_per_satellite(s, s.ref_s + s.max_age_s, np.max) for s in present)
         return start, end
 
     def positions(self, letter: str, prn: np.ndarray, t_gps: float) -> np.ndarray:
@@ -126,6 +128,11 @@ class Ephemeris:
         else:
             out[have] = kepler_positions(letter, sats.prn[records], sats.values[records], dt)
         return out
+
+
+def _median_per_satellite(sats: Satellites, times: np.ndarray, pick) -> float:
+    """The median over satellites of pick(times of the satellite's healthy records)."""
+    return float(np.median([pick(times[(sats.prn == prn) & sats.healthy]) for prn in np.unique(sats.prn[sats.healthy])]))
 
 
 def kepler_positions(letter: str, prn: np.ndarray, v: np.ndarray, tk: np.ndarray) -> np.ndarray:

@@ -34,8 +34,9 @@ from sim.scene import split
 from sim.traffic import Traffic
 from sim.visibility import trace
 
-DEFAULT_EPOCH = datetime(2018, 7, 29, 14, 0, 0, tzinfo=UTC)
-"""Default scenario start: 10:00 local time in Boston on a July day, inside the shipped ephemeris file."""
+DEFAULT_EPOCH = datetime(2018, 7, 29, 15, 0, 0, tzinfo=UTC)
+"""Default scenario start: 11:00 local time in Boston on a July day, near the middle of the shipped ephemeris file's span
+(four systems: 2018-07-29 11:45 to 19:15 UTC, Constellation.start_utc and end_utc), with hours to spare for any route."""
 DEFAULT_CONSTELLATIONS: tuple[System, ...] = ("GPS", "GLONASS", "GALILEO", "BEIDOU")
 """A modern single-frequency receiver tracks all four global systems (u-blox M9/M10 and F9 default configuration,
 CFG-SIGNAL: GPS, GLONASS, Galileo, BeiDou enabled)."""

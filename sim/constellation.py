@@ -57,7 +57,9 @@ def load_ephemeris(name: str) -> ephemeris.Ephemeris:
     try:
         mtime = path.stat().st_mtime_ns
     except OSError:
-        raise ephemeris.EphemerisError(f"ephemeris file {name} not found (shipped: {', '.join(sorted(p.name for p in DATA.glob('*.rnx')))})") from None
+        raise ephemeris.EphemerisError(
+            f"ephemeris file {name} not found (shipped: {', '.join(sorted(p.name for p in DATA.glob('*.rnx')))})"
+        ) from None
     return _read(str(path), mtime)
 
 

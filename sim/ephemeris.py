@@ -248,7 +248,8 @@ def read(path: str | Path) -> Ephemeris:
             if letter not in SYSTEMS:
                 continue
             prn = int(head[1:3])
-            epoch = datetime(*(int(head[a:b]) for a, b in _EPOCH_COLUMNS), tzinfo=UTC)  # type: ignore[misc]
+            year, month, day, hour, minute, second = (int(head[a:b]) for a, b in _EPOCH_COLUMNS)
+            epoch = datetime(year, month, day, hour, minute, second, tzinfo=UTC)
             f = _fields(record)
             rows[letter].append(_record(letter, prn, epoch, f, leap))
     except (KeyError, ValueError, IndexError):
@@ -256,8 +257,8 @@ def read(path: str | Path) -> Ephemeris:
     systems = {}
     for letter, recs in rows.items():
         if recs:
-            prn, ref, age, healthy, values = (np.array(column) for column in zip(*recs, strict=True))
-            systems[letter] = Satellites(letter, prn, ref, age, healthy.astype(bool), values)
+            columns = [np.array(column) for column in zip(*recs, strict=True)]
+            systems[letter] = Satellites(letter, columns[0], columns[1], columns[2], columns[3].astype(bool), columns[4])
     return Ephemeris(path.name, leap, systems)
 
 

@@ -1,13 +1,12 @@
 """GnssReceiver: a GNSS receiver on the vessel, with ray-traced blackout and multipath over the world mesh.
 
-Per epoch: satellite positions of the tracked constellations from a real broadcast ephemeris file (sim.constellation,
-sim.ephemeris), azimuth/elevation
-from the antenna in the world's ENU frame, the elevation mask, line of sight and facade
-reflections by ray casting (sim.visibility, sim.multipath), pseudoranges with the receiver clock,
-elevation-dependent errors and NLOS/multipath biases (sim.pseudorange; each system's C/N0 and code noise
+Per epoch: satellite positions of the tracked constellations from a real broadcast ephemeris file
+(sim.constellation, sim.ephemeris), azimuth/elevation from the antenna in the world's ENU frame, the elevation mask,
+line of sight and facade reflections by ray casting (sim.visibility, sim.multipath), pseudoranges with the receiver
+clock, elevation-dependent errors and NLOS/multipath biases (sim.pseudorange; each system's C/N0 and code noise
 relative to GPS L1 C/A, sim.constellation), a weighted least-squares position with one receiver clock (sim.wls: the
-systems' time offsets are broadcast, so the simulated ranges share one clock), and the receiver's own navigation filter (sim.receiver_filter). Every fix
-carries the exact truth. All randomness comes from riverbench.rng.stream(seed, "gnss....").
+systems' time offsets are broadcast, so the simulated ranges share one clock), and the receiver's own navigation
+filter (sim.receiver_filter). Every fix carries the exact truth. All randomness comes from riverbench.rng.stream(seed, "gnss....").
 """
 
 from __future__ import annotations
@@ -26,8 +25,8 @@ from sim.constellation import CN0_OFFSET_DB, CODE_NOISE_SCALE, DEFAULT_EPHEMERIS
 from sim.ephemeris import EphemerisError
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import FixTruth, GnssFix, SatelliteReport, SatelliteTruth
-from sim.nmea.systems import PRIMARY
 from sim.multipath import L1_WAVELENGTH_M, FacadeIndex, code_multipath_error
+from sim.nmea.systems import PRIMARY
 from sim.pseudorange import PseudorangeNoise, RangeErrors
 from sim.receiver_filter import CvKalman, FilterConfig
 from sim.scene import split

@@ -147,7 +147,9 @@ def _in_gps_record(lines: list[str], k: int) -> bool:
 
 
 def test_a_time_outside_the_file_is_one_clear_error(tmp_path):
-    with pytest.raises(ValueError, match=r"gnss.epoch_utc 2030-01-01T00:00Z is outside the ephemeris file ELKO00USA_R_20182100000_01D_MN.rnx \(covers 2018-07-29T1"):
+    with pytest.raises(
+        ValueError, match=r"gnss.epoch_utc 2030-01-01T00:00Z is outside the ephemeris file ELKO00USA_R_20182100000_01D_MN.rnx \(covers 2018-"
+    ):
         GnssReceiver(epoch_utc="2030-01-01T00:00:00Z")
     rx = GnssReceiver()
     with pytest.raises(ValueError, match="outside the ephemeris file"):

@@ -225,6 +225,11 @@ class GnssReceiver:
     def rate_hz(self) -> float:
         return self.config.rate_hz
 
+    def check_covers(self, t_start: float, t_end: float) -> None:
+        """ValueError naming the ephemeris file's span when scenario times t_start..t_end (s) are not all inside it."""
+        for t, what in ((t_start, "gnss: the run's start"), (t_end, "gnss: the run's end")):
+            self.constellation.check(self.config.epoch_utc + timedelta(seconds=float(t)), what)
+
     def epochs(self, t_end: float, t_start: float = 0.0) -> np.ndarray:
         """Output times from t_start (inclusive) to t_end (exclusive) at rate_hz."""
         return t_start + np.arange(int(np.ceil((t_end - t_start) * self.rate_hz - 1e-9))) / self.rate_hz

@@ -154,6 +154,8 @@ def test_a_time_outside_the_file_is_one_clear_error(tmp_path):
     rx = GnssReceiver()
     with pytest.raises(ValueError, match="outside the ephemeris file"):
         rx.fix(gw.open_water(), gw.Static(), 86400.0)
+    with pytest.raises(ValueError, match="the run's end 2018-07-29T19:45Z is outside the ephemeris file"):
+        GnssReceiver(epoch_utc="2018-07-29T19:00:00Z").check_covers(0.0, 2700.0)
     with pytest.raises(ValueError, match="not found"):
         GnssReceiver(ephemeris="no_such_file.rnx")
     with pytest.raises(ValueError, match="twice"):

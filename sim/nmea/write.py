@@ -142,8 +142,9 @@ def gga(fix: Fix) -> str:
     return sentence(body)
 
 
-def rmc(fix: Fix) -> str:
-    """Recommended minimum: time, status, position, speed over ground (knots), course, date, mode."""
+def rmc(fix: Fix, gps_talker: bool = False) -> str:
+    """Recommended minimum: time, status, position, speed over ground (knots), course, date, mode. `gps_talker`: always
+    the NMEA 2.3 $GPRMC, as a receiver set to the GP main talker writes it for a device that reads only that (a Velodyne)."""
     when = _utc(fix)
     valid = fix.quality != 0
     lat, ns = _angle(fix.lat if valid else math.nan, 2, "NS")
@@ -152,7 +153,7 @@ def rmc(fix: Fix) -> str:
     course = _num(fix.course_deg if valid else math.nan, ".2f")
     mode = {0: "N", 1: "A", 6: "E"}.get(fix.quality, "A")
     body = f"{TALKER}RMC,{_time(when)},{'A' if valid else 'V'},{lat},{ns},{lon},{ew},{speed},{course},{when:%d%m%y},,,{mode}"
-    if _multi(fix):
+    if _multi(fix) and not gps_talker:
         body = f"{MULTI_TALKER}{body[2:]},V"
     return sentence(body)
 

@@ -78,6 +78,9 @@ class Satellites:
     values: np.ndarray
     """Keplerian systems: the 28 RINEX orbit fields after the clock (IODE, Crs, dn, M0, Cuc, e, Cus, sqrtA, toe, Cic,
     Omega0, Cis, i0, Crc, omega, Omegadot, IDOT, ...); GLONASS: x, y, z (m), vx, vy, vz (m/s), ax, ay, az (m/s^2)."""
+    nodes: np.ndarray | None = None
+    """GLONASS only: each record's state integrated once to every GLO_STEP_S node of its validity, (records, 2 K + 1, 6)
+    for K steps either side: a position at any time is then one short step from its nearest node (glonass_positions_from)."""
 
 
 @dataclass(frozen=True)
@@ -124,7 +127,7 @@ class Ephemeris:
         records = want[have]
         dt = t_gps - sats.ref_s[records]
         if letter == "R":
-            out[have] = glonass_positions(sats.values[records], dt)
+            out[have] = glonass_positions_from(sats.nodes, sats.values[records, 6:9], records, dt)
         else:
             out[have] = kepler_positions(letter, sats.prn[records], sats.values[records], dt)
         return out
@@ -186,18 +189,48 @@ def _glonass_rates(state: np.ndarray, accel: np.ndarray) -> np.ndarray:
     return np.concatenate([vel, acc + accel], axis=1)
 
 
+def _rk4(state: np.ndarray, accel: np.ndarray, h: np.ndarray | float) -> np.ndarray:
+    """One 4th-order Runge-Kutta step of h seconds (per row) of GLONASS states."""
+    h = np.broadcast_to(np.asarray(h, dtype=float), (len(state),))[:, None]
+    k1 = _glonass_rates(state, accel)
+    k2 = _glonass_rates(state + 0.5 * h * k1, accel)
+    k3 = _glonass_rates(state + 0.5 * h * k2, accel)
+    k4 = _glonass_rates(state + h * k3, accel)
+    return state + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
 def glonass_positions(v: np.ndarray, dt: np.ndarray) -> np.ndarray:
     """ECEF positions (N, 3) from GLONASS state vectors `v` (x, y, z, vx, vy, vz, ax, ay, az) integrated dt seconds (RK4)."""
     state, accel = v[:, :6].copy(), v[:, 6:9]
     steps = max(1, int(np.ceil(np.max(np.abs(dt)) / GLO_STEP_S)))
-    h = (np.asarray(dt, dtype=float) / steps)[:, None]
+    h = np.asarray(dt, dtype=float) / steps
     for _ in range(steps):
-        k1 = _glonass_rates(state, accel)
-        k2 = _glonass_rates(state + 0.5 * h * k1, accel)
-        k3 = _glonass_rates(state + 0.5 * h * k2, accel)
-        k4 = _glonass_rates(state + h * k3, accel)
-        state = state + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        state = _rk4(state, accel, h)
     return state[:, :3]
+
+
+def glonass_nodes(v: np.ndarray, max_age_s: float) -> np.ndarray:
+    """Each state of `v` integrated to every GLO_STEP_S node within +-max_age_s: (N, 2 K + 1, 6), node K at the record."""
+    k = int(np.ceil(max_age_s / GLO_STEP_S))
+    out = np.empty((len(v), 2 * k + 1, 6))
+    out[:, k] = v[:, :6]
+    for direction in (1.0, -1.0):
+        state = v[:, :6].copy()
+        for j in range(1, k + 1):
+            state = _rk4(state, v[:, 6:9], direction * GLO_STEP_S)
+            out[:, k + int(direction) * j] = state
+    return out
+
+
+def glonass_positions_from(nodes: np.ndarray | None, accel: np.ndarray, records: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """ECEF positions (N, 3) of GLONASS records dt seconds from their reference times: one RK4 step (at most half a node
+    spacing) from the nearest precomputed node (glonass_nodes), the same integration as glonass_positions to millimetres."""
+    if nodes is None:
+        raise ValueError("GLONASS records without integration nodes")
+    k = (nodes.shape[1] - 1) // 2
+    node = np.clip(np.rint(dt / GLO_STEP_S).astype(int), -k, k)
+    start = nodes[records, k + node]
+    return _rk4(start, accel, dt - node * GLO_STEP_S)[:, :3]
 
 
 def _float(text: str) -> float:
@@ -258,7 +291,8 @@ def read(path: str | Path) -> Ephemeris:
     for letter, recs in rows.items():
         if recs:
             columns = [np.array(column) for column in zip(*recs, strict=True)]
-            systems[letter] = Satellites(letter, columns[0], columns[1], columns[2], columns[3].astype(bool), columns[4])
+            nodes = glonass_nodes(columns[4], float(columns[2].max())) if letter == "R" else None
+            systems[letter] = Satellites(letter, columns[0], columns[1], columns[2], columns[3].astype(bool), columns[4], nodes)
     return Ephemeris(path.name, leap, systems)
 
 

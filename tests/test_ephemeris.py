@@ -108,6 +108,16 @@ def test_orbit_radii_and_periods_are_each_systems():
     assert (np.abs(gps_period - 11.967) < 0.02).all()
 
 
+def test_glonass_positions_from_nodes_are_the_direct_integration():
+    nav = load_ephemeris(DEFAULT_EPHEMERIS)
+    sats = nav.systems["R"]
+    rng = np.random.default_rng(0)
+    records = rng.integers(0, len(sats.prn), 200)
+    dt = rng.uniform(-1800.0, 1800.0, 200)
+    fast = eph.glonass_positions_from(sats.nodes, sats.values[records, 6:9], records, dt)
+    np.testing.assert_allclose(fast, eph.glonass_positions(sats.values[records], dt), atol=1e-3)
+
+
 def test_glonass_period_by_integration():
     # Integrating a GLONASS state through one nodal period (11 h 15 min 44 s, GLONASS ICD 5.1 3.1.1) brings the
     # satellite back to its inertial position near where it began: a check of the force model and the rotating frame.

@@ -86,8 +86,8 @@ def causes(fixes: list, after_outage_s: float) -> np.ndarray:
     for fix in fixes:
         if fix.quality not in POSITION_QUALITIES:
             last_gap = fix.stamp
-        nlos_prn = {s.prn for s in (fix.truth.sats if fix.truth is not None else ()) if s.nlos}
-        if any(s.used and s.prn in nlos_prn for s in fix.sats):
+        nlos_prn = {(s.system, s.prn) for s in (fix.truth.sats if fix.truth is not None else ()) if s.nlos}
+        if any(s.used and (s.system, s.prn) in nlos_prn for s in fix.sats):
             out.append("nlos")
         elif fix.quality in POSITION_QUALITIES and fix.stamp - last_gap <= after_outage_s:
             out.append("outage")

@@ -1,118 +1,124 @@
-"""GPS constellation: a nominal almanac of 31 satellites on the 6-plane layout, ECEF positions at any UTC.
+"""The satellites a receiver tracks: GPS, GLONASS, Galileo and BeiDou from a real broadcast ephemeris file.
 
-Orbits are circular (the GPS nominal design), inclined 55 deg, with the J2 regression of the
-ascending node and a mean motion that repeats the ground track every sidereal day (two
-revolutions, ~11 h 58 min each), which is how the operational constellation is kept.
-The slot layout is the 27-slot reference constellation of the GPS SPS Performance Standard
-(2008, Table A.2-2: 24 baseline slots plus the expanded B1, D2, F2 pairs), plus four spares in the
-largest gaps of planes A, B, C and E, giving the ~31 satellites usually on orbit. The table's
-angles are taken as this almanac's values at its time of applicability `ALMANAC_EPOCH`;
-positions are refused more than `VALIDITY` away from it, as a receiver refuses a stale almanac.
+Positions come from the file's broadcast orbits (sim.ephemeris); a satellite without a current healthy record is not
+served, as a receiver without its ephemeris does not use it. The shipped file (sim/data/NOTICE) holds the ephemerides
+the IGS station ELKO (Elko, Nevada) logged on 2018-07-29 from 11:00 to 19:59 GPST; any RINEX 3 navigation file may
+be named instead. Per system: the NMEA name and the signal a single-frequency receiver tracks, its C/N0 relative
+to GPS L1 C/A, and its code noise relative to GPS L1 C/A.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
-MU_EARTH = 3.986005e14
-"""WGS-84 gravitational parameter as used by GPS (IS-GPS-200), m^3/s^2."""
-OMEGA_EARTH = 7.2921151467e-5
-"""WGS-84 Earth rotation rate, rad/s."""
-NODE_RATE = np.deg2rad(-4.4874e-7)
-"""Nominal J2 regression of the ascending node for GPS orbits (SPS PS Table A.2-2), rad/s."""
-INCLINATION = np.deg2rad(55.0)
-MEAN_MOTION = 2.0 * (OMEGA_EARTH - NODE_RATE)
-"""rad/s: two revolutions per revolution of the node in the Earth frame (repeating ground track)."""
-RADIUS = (MU_EARTH / MEAN_MOTION**2) ** (1.0 / 3.0)
-"""Orbit radius from Kepler's third law for MEAN_MOTION, ~26,561 km."""
+from sim import ephemeris
+from sim.nmea import systems as nmea
 
-ALMANAC_EPOCH = datetime(2024, 6, 1, tzinfo=UTC)
-"""Time of applicability of the nominal almanac."""
-VALIDITY = timedelta(days=180)
-"""How far from ALMANAC_EPOCH positions are served; a real almanac is good for months."""
+System = Literal["GPS", "GLONASS", "GALILEO", "BEIDOU"]
+DATA = Path(__file__).parent / "data"
+DEFAULT_EPHEMERIS = "ELKO00USA_R_20182100000_01D_MN.rnx"
+"""The shipped file (sim/data/NOTICE: source, licence, how it was cut)."""
+LETTERS: dict[str, str] = {name: letter for letter, name in ephemeris.SYSTEMS.items()}
+NMEA_SYSTEM = {"GPS": nmea.GPS, "GLONASS": nmea.GLONASS, "GALILEO": nmea.GALILEO, "BEIDOU": nmea.BEIDOU}
+"""Config name -> sim.nmea.systems name (what SatelliteReport.system carries)."""
+CN0_OFFSET_DB = {"GPS": 0.0, "GLONASS": -2.5, "GALILEO": 1.5, "BEIDOU": -4.5}
+"""C/N0 of each system's L1-band civil signal relative to GPS L1 C/A, dB: the difference of the specified minimum
+received powers, GPS L1 C/A -158.5 dBW (IS-GPS-200N Table 3-Va), GLONASS L1OF -161 dBW (GLONASS ICD 5.1, 2008,
+3.3.1.6), Galileo E1 B+C -157 dBW (Galileo OS SIS ICD 2.1, 2.4.1), BeiDou B1I -163 dBW (BDS-SIS-ICD-B1I-3.0, 3.3);
+the same priors as fusion.monitors.cn0.PRIOR_OFFSETS_DB."""
+CODE_NOISE_SCALE = {"GPS": 1.0, "GLONASS": 2.0, "GALILEO": 1.0, "BEIDOU": 0.5}
+"""White code noise relative to GPS L1 C/A at the same C/N0 and correlator spacing in chips: the delay-lock loop's
+thermal noise scales with the chip length (Kaplan and Hegarty, Understanding GPS/GNSS, 3rd ed., 2017, eq. 8.54),
+GLONASS L1OF 0.511 Mchip/s (twice GPS's chip), BeiDou B1I 2.046 Mchip/s (half); Galileo E1 BOC(1,1) at 1.023
+Mchip/s taken as GPS (its sharper correlation peak would lower it: conservative)."""
 
-# Geographic longitude of the ascending node at the epoch (deg) per plane, as in the SPS PS table.
-_PLANE_NODE_DEG = {"A": 357.734, "B": 57.734, "C": 117.734, "D": 177.734, "E": 237.734, "F": 297.734}
-# (slot, plane, argument of latitude at the epoch in deg); PRNs are assigned in this order.
-_SLOTS = (
-    ("A1", "A", 268.126),
-    ("A2", "A", 161.786),
-    ("A3", "A", 11.676),
-    ("A4", "A", 41.806),
-    ("B1F", "B", 94.916),
-    ("B1A", "B", 66.356),
-    ("B2", "B", 173.336),
-    ("B3", "B", 309.976),
-    ("B4", "B", 204.376),
-    ("C1", "C", 111.876),
-    ("C2", "C", 11.796),
-    ("C3", "C", 339.666),
-    ("C4", "C", 241.556),
-    ("D1", "D", 135.226),
-    ("D2F", "D", 282.676),
-    ("D2A", "D", 257.976),
-    ("D3", "D", 35.156),
-    ("D4", "D", 167.356),
-    ("E1", "E", 197.046),
-    ("E2", "E", 302.596),
-    ("E3", "E", 66.066),
-    ("E4", "E", 333.686),
-    ("F1", "F", 238.886),
-    ("F2F", "F", 0.456),
-    ("F2A", "F", 334.016),
-    ("F3", "F", 105.206),
-    ("F4", "F", 135.346),
-    # spares, mid-gap in the four planes with the largest gaps
-    ("A5", "A", 101.796),
-    ("B5", "B", 8.166),
-    ("C5", "C", 176.716),
-    ("E5", "E", 131.556),
-)
+
+def ephemeris_path(name: str) -> Path:
+    """A shipped file's name (sim/data) or a path to a RINEX 3 navigation file."""
+    shipped = DATA / name
+    return shipped if shipped.is_file() else Path(name)
+
+
+@functools.lru_cache(maxsize=4)
+def _read(path: str, mtime_ns: int) -> ephemeris.Ephemeris:
+    del mtime_ns  # part of the cache key only: a file rewritten in place is read again
+    return ephemeris.read(path)
+
+
+def load_ephemeris(name: str) -> ephemeris.Ephemeris:
+    """The parsed file (cached per path and modification time: configs and receivers share one parse)."""
+    path = ephemeris_path(name)
+    try:
+        mtime = path.stat().st_mtime_ns
+    except OSError:
+        raise ephemeris.EphemerisError(
+            f"ephemeris file {name} not found (shipped: {', '.join(sorted(p.name for p in DATA.glob('*.rnx')))})"
+        ) from None
+    return _read(str(path), mtime)
+
+
+def _iso(utc: datetime) -> str:
+    return utc.astimezone(UTC).strftime("%Y-%m-%dT%H:%MZ")
 
 
 @dataclass(frozen=True)
 class Constellation:
-    """Nominal GPS almanac: PRN numbers and orbital angles, vectorised over satellites."""
+    """Satellites of the chosen systems in an ephemeris file: per satellite its system (config name), number within
+    its system (GPS PRN, GLONASS slot, Galileo/BeiDou SV id); positions at any UTC the file covers."""
 
+    source: ephemeris.Ephemeris
+    system: tuple[str, ...]
     prn: np.ndarray
-    node0: np.ndarray
-    arg_lat0: np.ndarray
-    slot: tuple[str, ...]
+    start_utc: datetime
+    end_utc: datetime
 
     @classmethod
-    def nominal(cls) -> Constellation:
-        """The 31-satellite nominal almanac (PRN 1..31 in slot-table order)."""
+    def load(cls, name: str = DEFAULT_EPHEMERIS, systems: tuple[str, ...] = ("GPS",)) -> Constellation:
+        """The satellites of `systems` in ephemeris file `name` (EphemerisError if it cannot be read or lacks them)."""
+        source = load_ephemeris(name)
+        letters = "".join(LETTERS[s] for s in systems)
+        sats = source.satellites(letters)
+        start, end = source.span_s(letters)
         return cls(
-            prn=np.arange(1, len(_SLOTS) + 1),
-            node0=np.deg2rad([_PLANE_NODE_DEG[plane] for _, plane, _ in _SLOTS]),
-            arg_lat0=np.deg2rad([u for _, _, u in _SLOTS]),
-            slot=tuple(name for name, _, _ in _SLOTS),
+            source=source,
+            system=tuple(ephemeris.SYSTEMS[letter] for letter, _ in sats),
+            prn=np.array([p for _, p in sats], dtype=int),
+            start_utc=ephemeris.utc_of(start, source.leap_seconds),
+            end_utc=ephemeris.utc_of(end, source.leap_seconds),
         )
 
     def __len__(self) -> int:
         return len(self.prn)
 
-    @staticmethod
-    def seconds_since_epoch(utc: datetime) -> float:
-        """Seconds from ALMANAC_EPOCH to `utc`; ValueError outside the almanac's validity."""
+    def check(self, utc: datetime, what: str = "gnss.epoch_utc") -> None:
+        """EphemerisError naming `what` when utc is outside the span the file covers for these systems."""
         if utc.tzinfo is None:
-            raise ValueError(f"gnss: UTC time {utc.isoformat()} has no time zone (use UTC)")
-        dt = utc - ALMANAC_EPOCH
-        if abs(dt) > VALIDITY:
-            raise ValueError(f"gnss: UTC time {utc.isoformat()} is outside the almanac's validity ({ALMANAC_EPOCH.date()} +/- {VALIDITY.days} days)")
-        return dt.total_seconds()
+            raise ephemeris.EphemerisError(f"{what} {utc.isoformat()} has no time zone (use UTC)")
+        if not self.start_utc <= utc <= self.end_utc:
+            raise ephemeris.EphemerisError(
+                f"{what} {_iso(utc)} is outside the ephemeris file {self.source.name} (covers {_iso(self.start_utc)} to {_iso(self.end_utc)})"
+            )
 
-    def ecef(self, seconds_since_epoch: float) -> np.ndarray:
-        """(N, 3) ECEF positions in metres at `seconds_since_epoch` after ALMANAC_EPOCH."""
-        dt = float(seconds_since_epoch)
-        if not abs(dt) <= VALIDITY.total_seconds():
-            raise ValueError(f"gnss: time {dt:.0f} s from the almanac epoch is outside its validity (+/- {VALIDITY.days} days)")
-        u = self.arg_lat0 + MEAN_MOTION * dt
-        node = self.node0 + (NODE_RATE - OMEGA_EARTH) * dt
-        cu, su = np.cos(u), np.sin(u)
-        cn, sn = np.cos(node), np.sin(node)
-        ci, si = np.cos(INCLINATION), np.sin(INCLINATION)
-        return RADIUS * np.stack([cu * cn - su * ci * sn, cu * sn + su * ci * cn, su * si], axis=1)
+    @functools.cached_property
+    def _groups(self) -> list[tuple[str, np.ndarray]]:
+        names = np.array(self.system)
+        return [(LETTERS[s], np.nonzero(names == s)[0]) for s in dict.fromkeys(self.system)]
+
+    def ecef(self, utc: datetime) -> np.ndarray:
+        """(N, 3) ECEF positions (m) at utc; NaN rows for satellites without a current healthy record."""
+        self.check(utc, "gnss: time")
+        t = ephemeris.gps_seconds(utc, self.source.leap_seconds)
+        out = np.full((len(self), 3), np.nan)
+        for letter, rows in self._groups:
+            out[rows] = self.source.positions(letter, self.prn[rows], t)
+        return out
+
+    def per_satellite(self, table: dict[str, float]) -> np.ndarray:
+        """A per-system table (CN0_OFFSET_DB, CODE_NOISE_SCALE) as one value per satellite."""
+        return np.array([table[s] for s in self.system], dtype=float)

@@ -1,11 +1,12 @@
-"""GnssReceiver: a GPS receiver on the vessel, with ray-traced blackout and multipath over the world mesh.
+"""GnssReceiver: a GNSS receiver on the vessel, with ray-traced blackout and multipath over the world mesh.
 
-Per epoch: satellite positions from the nominal almanac (sim.constellation), azimuth/elevation
-from the antenna in the world's ENU frame, the elevation mask, line of sight and facade
-reflections by ray casting (sim.visibility, sim.multipath), pseudoranges with the receiver clock,
-elevation-dependent errors and NLOS/multipath biases (sim.pseudorange), a weighted least-squares
-position (sim.wls), and the receiver's own navigation filter (sim.receiver_filter). Every fix
-carries the exact truth. All randomness comes from riverbench.rng.stream(seed, "gnss....").
+Per epoch: satellite positions of the tracked constellations from a real broadcast ephemeris file
+(sim.constellation, sim.ephemeris), azimuth/elevation from the antenna in the world's ENU frame, the elevation mask,
+line of sight and facade reflections by ray casting (sim.visibility, sim.multipath), pseudoranges with the receiver
+clock, elevation-dependent errors and NLOS/multipath biases (sim.pseudorange; each system's C/N0 and code noise
+relative to GPS L1 C/A, sim.constellation), a weighted least-squares position with one receiver clock (sim.wls: the
+systems' time offsets are broadcast, so the simulated ranges share one clock), and the receiver's own navigation
+filter (sim.receiver_filter). Every fix carries the exact truth. All randomness comes from riverbench.rng.stream(seed, "gnss....").
 """
 
 from __future__ import annotations
@@ -20,11 +21,13 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from riverbench.rng import stream
 from sim import wls
-from sim.constellation import Constellation
+from sim.constellation import CN0_OFFSET_DB, CODE_NOISE_SCALE, DEFAULT_EPHEMERIS, NMEA_SYSTEM, Constellation, System
+from sim.ephemeris import EphemerisError
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import FixTruth, GnssFix, SatelliteReport, SatelliteTruth
 from sim.gnss_profiles import DEFAULT_PROFILE, Corrections, ProfileName, with_profile
 from sim.multipath import L1_WAVELENGTH_M, FacadeIndex, code_multipath_error
+from sim.nmea.systems import PRIMARY
 from sim.pseudorange import PseudorangeNoise, RangeErrors
 from sim.receiver_filter import CvKalman, FilterConfig
 from sim.rtk import RTK_FIXED, RTK_FLOAT, RtkConfig, RtkErrors, RtkLock
@@ -32,8 +35,12 @@ from sim.scene import split
 from sim.traffic import Traffic
 from sim.visibility import trace
 
-DEFAULT_EPOCH = datetime(2024, 6, 15, 14, 0, 0, tzinfo=UTC)
-"""Default scenario start: 10:00 local time in Boston on a June day."""
+DEFAULT_EPOCH = datetime(2018, 7, 29, 15, 0, 0, tzinfo=UTC)
+"""Default scenario start: 11:00 local time in Boston on a July day, near the middle of the shipped ephemeris file's span
+(four systems: 2018-07-29 11:45 to 19:15 UTC, Constellation.start_utc and end_utc), with hours to spare for any route."""
+DEFAULT_CONSTELLATIONS: tuple[System, ...] = ("GPS", "GLONASS", "GALILEO", "BEIDOU")
+"""A modern single-frequency receiver tracks all four global systems (u-blox M9/M10 and F9 default configuration,
+CFG-SIGNAL: GPS, GLONASS, Galileo, BeiDou enabled)."""
 
 
 class OutageWindow(BaseModel):
@@ -59,7 +66,7 @@ class BiasWindow(OutageWindow):
         description="shifts the raw position solution by this ENU offset, m (applied through the pseudoranges, "
         "-u_i . offset on satellite i, so DOP and residuals stay consistent; default none)",
     )
-    prn: int | None = Field(None, ge=1, description="satellite that range_m biases (a classic integrity-monitor test; default none)")
+    prn: int | None = Field(None, ge=1, description="GPS satellite (PRN) that range_m biases (a classic integrity-monitor test; default none)")
     range_m: float = Field(0.0, description="range bias added to satellite prn, m (default 0)")
 
 
@@ -97,7 +104,18 @@ class GnssConfig(BaseModel):
         "with a base station (0.01 m + 1 ppm CEP fixed, convergence < 10 s). A field written beside it wins.",
     )
     rate_hz: float = Field(5.0, ge=1.0, le=10.0, description="Output rate, Hz (1-10).")
-    epoch_utc: datetime = Field(DEFAULT_EPOCH, description="UTC at scenario time 0 (satellite geometry).")
+    epoch_utc: datetime = Field(DEFAULT_EPOCH, description="UTC at scenario time 0 (satellite geometry); must fall inside the ephemeris file.")
+    constellations: tuple[System, ...] = Field(
+        DEFAULT_CONSTELLATIONS,
+        min_length=1,
+        description="Satellite systems tracked: any of GPS, GLONASS, GALILEO, BEIDOU (default all four, as a modern receiver).",
+    )
+    ephemeris: str = Field(
+        DEFAULT_EPHEMERIS,
+        min_length=1,
+        description="RINEX 3 navigation file the satellite positions come from: a shipped file's name (sim/data; default "
+        "the IGS station ELKO's broadcast ephemerides of 2018-07-29 11:00-19:59 GPST) or a path.",
+    )
     elevation_mask_deg: float = Field(12.0, ge=0.0, lt=90.0, description="Satellites below this are not used, deg.")
     pdop_mask: float = Field(25.0, gt=1.0, description="Raw solutions with a larger PDOP are discarded (u-blox default 25).")
     antenna_offset_m: tuple[float, float, float] = Field((0.0, 0.0, 1.3), description="Antenna phase centre on base_link (x fwd, y left, z up), m.")
@@ -131,11 +149,24 @@ class GnssConfig(BaseModel):
 
     @field_validator("epoch_utc")
     @classmethod
-    def _valid_epoch(cls, value: datetime) -> datetime:
+    def _utc(cls, value: datetime) -> datetime:
         value = value if value.tzinfo is not None else value.replace(tzinfo=UTC)
-        value = value.astimezone(UTC)
-        Constellation.seconds_since_epoch(value)
+        return value.astimezone(UTC)
+
+    @field_validator("constellations")
+    @classmethod
+    def _distinct(cls, value: tuple[str, ...]) -> tuple[str, ...]:
+        if len(set(value)) != len(value):
+            raise ValueError(f"constellations lists a system twice: {list(value)}")
         return value
+
+    @model_validator(mode="after")
+    def _covered(self) -> GnssConfig:
+        try:
+            Constellation.load(self.ephemeris, self.constellations).check(self.epoch_utc)
+        except EphemerisError as exc:
+            raise ValueError(str(exc)) from None
+        return self
 
 
 class _Navigator:
@@ -191,12 +222,15 @@ class _WorldGeometry:
 
 
 class GnssReceiver:
-    """Simulated GPS receiver; call `.fix(world, trajectory, t)` at increasing times t (s)."""
+    """Simulated GNSS receiver; call `.fix(world, trajectory, t)` at increasing times t (s)."""
 
     def __init__(self, rate_hz: float = 5.0, seed: int = 0, **more):
         self.config = GnssConfig(rate_hz=rate_hz, **more)
         self.seed = int(seed)
-        self.constellation = Constellation.nominal()
+        self.constellation = Constellation.load(self.config.ephemeris, self.config.constellations)
+        self._cn0_offset = self.constellation.per_satellite(CN0_OFFSET_DB)
+        self._code_scale = self.constellation.per_satellite(CODE_NOISE_SCALE)
+        self._nmea_system = [NMEA_SYSTEM[s] for s in self.constellation.system]
         self._errors = RangeErrors(self.config.noise, len(self.constellation), stream(self.seed, "gnss.range_errors"))
         self._cn0_rng = stream(self.seed, "gnss.cn0")
         self._navigator = _Navigator(self.config)
@@ -213,6 +247,11 @@ class GnssReceiver:
     @property
     def rate_hz(self) -> float:
         return self.config.rate_hz
+
+    def check_covers(self, t_start: float, t_end: float) -> None:
+        """ValueError naming the ephemeris file's span when scenario times t_start..t_end (s) are not all inside it."""
+        for t, what in ((t_start, "gnss: the run's start"), (t_end, "gnss: the run's end")):
+            self.constellation.check(self.config.epoch_utc + timedelta(seconds=float(t)), what)
 
     def epochs(self, t_end: float, t_start: float = 0.0) -> np.ndarray:
         """Output times from t_start (inclusive) to t_end (exclusive) at rate_hz."""
@@ -243,19 +282,18 @@ class GnssReceiver:
         if self._last_t is not None and t <= self._last_t:
             raise ValueError(f"gnss: fix times must increase, got t={t} after t={self._last_t}")
         utc = self.config.epoch_utc + timedelta(seconds=t)
-        since_almanac = Constellation.seconds_since_epoch(utc)
         antenna = self._antenna(trajectory, t)
         world, traffic = split(world)
         geo = self._geometry(world)
         self._last_t = t
 
-        sat_enu, geometric, dirs, el, view = self._sky(geo, antenna, since_almanac)
+        sat_enu, geometric, dirs, el, view = self._sky(geo, antenna, utc)
         los, nlos, extra = self._paths(world, traffic, geo, antenna, dirs, t)
 
         # Signal strength and tracking.
         mp = self.config.multipath
         noise = self.config.noise
-        cn0_open_sky = noise.cn0(el) + noise.cn0_jitter_db * self._cn0_rng.standard_normal(len(view))
+        cn0_open_sky = noise.cn0(el) + self._cn0_offset[view] + noise.cn0_jitter_db * self._cn0_rng.standard_normal(len(view))
         cn0 = cn0_open_sky + np.where(nlos, 20.0 * np.log10(mp.reflection_amplitude), 0.0)
         cn0[los] -= self.config.foliage_loss_db_per_m * world.crowns.path_length(antenna, dirs[los])
         tracked = (los | nlos) & (cn0 >= noise.tracking_threshold_dbhz)
@@ -276,7 +314,7 @@ class GnssReceiver:
         bias += self._forced_bias(t, view, dirs)
         slow, white = self._errors.advance(t)
         mapping = 1.0 / np.sin(el)
-        open_sky_range = geometric + self._errors.clock_m(t) + mapping * (slow[view] + white[view])
+        open_sky_range = geometric + self._errors.clock_m(t) + mapping * (slow[view] + self._code_scale[view] * white[view])
         pseudorange = open_sky_range + bias
         sigma = noise.sigma(el)
 
@@ -292,7 +330,7 @@ class GnssReceiver:
             antenna,
             enu,
             quality,
-            self._rtk_lock.update(t, self.constellation.prn[view][tracked & los].tolist(), bool((tracked & nlos).any())),
+            self._rtk_lock.update(t, view[tracked & los].tolist(), bool((tracked & nlos).any())),
             rtk_errors,
         )
         open_sky_enu = self._differential(
@@ -300,14 +338,16 @@ class GnssReceiver:
             antenna,
             open_sky_enu,
             open_sky_quality,
-            self._open_sky_rtk_lock.update(t, self.constellation.prn[view][clear].tolist(), False),
+            self._open_sky_rtk_lock.update(t, view[clear].tolist(), False),
             rtk_errors,
         )[0]
         az = (np.rad2deg(np.arctan2(dirs[:, 0], dirs[:, 1])) % 360.0).tolist()
         used = tracked if solution is not None else np.zeros(len(view), dtype=bool)
         snr = np.where(tracked, cn0, 0.0).tolist()
-        sats = tuple(map(SatelliteReport, prn, az, np.rad2deg(el).tolist(), snr, used.tolist()))
-        sat_truth = tuple(map(SatelliteTruth, prn, los.tolist(), nlos.tolist(), bias.tolist()))
+        system = [self._nmea_system[k] for k in view]
+        signal = [PRIMARY[s] for s in system]
+        sats = tuple(map(SatelliteReport, prn, az, np.rad2deg(el).tolist(), snr, used.tolist(), system, signal))
+        sat_truth = tuple(map(SatelliteTruth, prn, los.tolist(), nlos.tolist(), bias.tolist(), system))
         lat, lon, alt = geo.frame.geodetic_of_enu(enu) if quality else (np.nan, np.nan, np.nan)
         speed = float(np.hypot(velocity[0], velocity[1]))
         course = float(np.rad2deg(np.arctan2(velocity[0], velocity[1])) % 360.0) if np.isfinite(speed) else np.nan
@@ -329,6 +369,7 @@ class GnssReceiver:
             course_deg=course,
             correction_age_s=age,
             station_id=self.config.corrections.station_id if np.isfinite(age) else None,
+            systems=tuple(NMEA_SYSTEM[s] for s in self.config.constellations),
         )
 
     def _differential(
@@ -349,13 +390,16 @@ class GnssReceiver:
         weight = self._rtk_lock.float_weight(converging_s)
         return antenna + float_error + weight * (enu - antenna), RTK_FLOAT, age
 
-    def _sky(self, geo: _WorldGeometry, antenna: np.ndarray, since_almanac: float):
-        """Satellites above the mask: ENU positions, ranges, unit directions, elevations, indices."""
-        sat_enu = geo.frame.enu_of_ecef(self.constellation.ecef(since_almanac))
+    def _sky(self, geo: _WorldGeometry, antenna: np.ndarray, utc: datetime):
+        """Satellites above the mask (with a current ephemeris): ENU positions, ranges, unit directions, elevations, indices."""
+        ecef = self.constellation.ecef(utc)
+        known = np.nonzero(np.isfinite(ecef[:, 0]))[0]
+        sat_enu = np.full_like(ecef, np.nan)
+        sat_enu[known] = geo.frame.enu_of_ecef(ecef[known])
         diff = sat_enu - antenna
         geometric = np.sqrt(np.einsum("ij,ij->i", diff, diff))
         up = diff[:, 2] / geometric
-        view = np.nonzero(up >= np.sin(self._mask))[0]
+        view = known[up[known] >= np.sin(self._mask)]
         return sat_enu[view], geometric[view], diff[view] / geometric[view, None], np.arcsin(up[view]), view
 
     def _paths(self, world, traffic: Traffic, geo: _WorldGeometry, antenna: np.ndarray, dirs: np.ndarray, t: float):
@@ -387,5 +431,6 @@ class GnssReceiver:
             if window.start_s <= t < window.end_s:
                 bias -= dirs @ np.asarray(window.enu_m)
                 if window.prn is not None:
-                    bias[self.constellation.prn[view] == window.prn] += window.range_m
+                    gps = np.array([self.constellation.system[k] == "GPS" for k in view], dtype=bool)
+                    bias[gps & (self.constellation.prn[view] == window.prn)] += window.range_m
         return bias

@@ -14,7 +14,8 @@ from sim.nmea.systems import GPS, PRIMARY
 class SatelliteReport:
     """One satellite signal as the receiver reports it (NMEA GSV/GSA): its number in its system (prn: the GPS PRN,
     GLONASS slot, Galileo/BeiDou SV id), azimuth and elevation (deg), C/N0 (dB-Hz, 0 when not tracked), whether the
-    fix used it, its system and signal (sim.nmea.systems' names; the simulated receiver is GPS L1 C/A only)."""
+    fix used it, its system and signal (sim.nmea.systems' names; the simulated receiver tracks each system's civil
+    L1-band signal, sim.nmea.systems.PRIMARY)."""
 
     prn: int
     az_deg: float
@@ -27,12 +28,14 @@ class SatelliteReport:
 
 @dataclass(frozen=True)
 class SatelliteTruth:
-    """Simulator truth for one tracked satellite: line of sight or not, and its range bias (m)."""
+    """Simulator truth for one satellite in view: line of sight or not, and its range bias (m); prn and system as its
+    SatelliteReport's."""
 
     prn: int
     los: bool
     nlos: bool
     bias_m: float
+    system: str = GPS
 
 
 @dataclass(frozen=True)
@@ -77,6 +80,8 @@ class GnssFix:
     course_deg: float = float("nan")
     correction_age_s: float = float("nan")
     station_id: int | None = None
+    systems: tuple[str, ...] = ()
+    """The systems the receiver tracks (sim.nmea.systems names; NMEA talker GN when several); () when unknown: those of `sats`."""
 
     @property
     def valid(self) -> bool:

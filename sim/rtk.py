@@ -117,10 +117,11 @@ class RtkLock:
     def start(cls, config: RtkConfig) -> RtkLock:
         return cls(config, {})
 
-    def update(self, t: float, locked_prns: list[int], nlos_tracked: bool) -> tuple[int, float]:
+    def update(self, t: float, locked: list[int], nlos_tracked: bool) -> tuple[int, float]:
         """GGA quality (4 fixed, 5 float) and how long (s) the float solution has been converging, after this epoch
-        with carrier lock on locked_prns (the satellites tracked by a direct signal; any other loses its lock)."""
-        self.since = {prn: self.since.get(prn, t) for prn in locked_prns}
+        with carrier lock on `locked` (ids of the satellites tracked by a direct signal, unique across systems; any other
+        loses its lock)."""
+        self.since = {sat: self.since.get(sat, t) for sat in locked}
         held = sorted((t - s for s in self.since.values()), reverse=True)
         if len(held) < self.config.min_fix_sats:
             return RTK_FLOAT, 0.0

@@ -297,9 +297,10 @@ def test_gps_fix_carries_the_receivers_dops_and_satellites_as_gpsd_client(outage
     fixes = [fix for frame in frames for fix in frame.fixes]
     for (t, msg), fix in zip(messages(bags[fmt], "/gps/extended_fix"), fixes, strict=True):
         assert t == ns(msg.header.stamp) == ros_ns(info.epoch_utc, fix.stamp) and msg.header.frame_id == "gps"
-        used = [s.prn for s in fix.sats if s.used]
+        gpsd = {"GPS": 0, "GLONASS": 64, "Galileo": 300, "BeiDou": 400}  # gpsd's numbering (include/gps.h satellite_t)
+        used = [s.prn + gpsd[s.system] for s in fix.sats if s.used]
         assert (msg.status.satellites_used, list(msg.status.satellite_used_prn)) == (len(used), used)
-        assert list(msg.status.satellite_visible_prn) == [s.prn for s in fix.sats]
+        assert list(msg.status.satellite_visible_prn) == [s.prn + gpsd[s.system] for s in fix.sats]
         assert list(msg.status.satellite_visible_z) == [int(s.el_deg) for s in fix.sats]  # C++ double -> int32 truncates
         assert msg.position_covariance_type == 0  # gpsd_client leaves the covariance unknown
         if fix.quality:  # a solution (gpsd mode 2D/3D; dead reckoning too): STATUS_FIX and the receiver's values in float64

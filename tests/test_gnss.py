@@ -139,8 +139,10 @@ def test_open_sky_error_separates_the_environment_from_the_nominal_error():
     # nominal error exactly; the canyon adds NLOS errors on top, and forced faults are not nominal.
     canyon = gw.canyon(north_y=20.0, south_y=-20.0, height=25.0, x0=0.0, x1=300.0)
     forced = [{"start_s": 40.0, "end_s": 50.0}]
-    walled = GnssReceiver(profile="consumer", seed=3, forced_outages=forced)
-    clear = GnssReceiver(profile="consumer", seed=3)
+    # GPS only: the canyon's sky as a GPS receiver sees it (with four systems, more direct signals dilute the NLOS
+    # errors: benchmarks/constellations.py measures how much)
+    walled = GnssReceiver(profile="consumer", seed=3, constellations=["GPS"], forced_outages=forced)
+    clear = GnssReceiver(profile="consumer", seed=3, constellations=["GPS"])
     motion, open_water = gw.Straight(speed=2.0, x0=0.0), gw.open_water()
     added = []
     for t in walled.epochs(120.0):
@@ -207,10 +209,10 @@ def test_forced_bias_shifts_the_raw_solution_by_exactly_the_offset():
 
 
 def test_forced_single_satellite_bias_is_reported_in_the_truth():
-    rx = raw_noise_off(forced_biases=[{"start_s": 0.0, "end_s": 9.0, "prn": 4, "range_m": 30.0}])
+    rx = raw_noise_off(forced_biases=[{"start_s": 0.0, "end_s": 9.0, "prn": 8, "range_m": 30.0}])  # GPS PRN 8: in view at the default epoch
     fix = rx.fix(gw.open_water(), gw.Static(), 0.0)
-    biased = {s.prn: s.bias_m for s in fix.truth.sats}
-    assert biased.get(4) == 30.0 and all(b == 0.0 for p, b in biased.items() if p != 4)
+    biased = {(s.system, s.prn): s.bias_m for s in fix.truth.sats}
+    assert biased.get(("GPS", 8)) == 30.0 and all(b == 0.0 for p, b in biased.items() if p != ("GPS", 8))
     assert np.linalg.norm(fix.truth.error) > 1.0
 
 
@@ -249,9 +251,9 @@ def test_bad_inputs_raise_one_clear_error():
     rx.fix(world, still, 1.0)
     with pytest.raises(ValueError, match="must increase"):
         rx.fix(world, still, 1.0)
-    with pytest.raises(ValueError, match="validity"):
+    with pytest.raises(ValueError, match="outside the ephemeris file"):
         GnssReceiver(epoch_utc="2031-01-01T00:00:00Z")
-    with pytest.raises(ValueError, match="validity"):
+    with pytest.raises(ValueError, match="outside the ephemeris file"):
         GnssReceiver().fix(world, still, 400.0 * 86400.0)
     with pytest.raises(ValueError, match="not finite"):
         GnssReceiver().fix(world, gw.Static(x=np.nan), 0.0)
@@ -279,7 +281,7 @@ def test_canal_lock_walls_give_large_nlos_errors_at_low_hdop_open_river_does_not
     def run(name, **trajectory):
         world = worlds.load(name)
         motion = Trajectory(world, **trajectory)
-        rx = GnssReceiver(profile="consumer", seed=0, rate_hz=1.0)
+        rx = GnssReceiver(profile="consumer", seed=0, rate_hz=1.0, constellations=["GPS"])  # GPS's sky
         fixes = [rx.fix(world, motion, t) for t in rx.epochs(motion.duration)]
         herr = np.array([np.linalg.norm(f.truth.error[:2]) for f in fixes])
         hdop = np.array([f.hdop for f in fixes])

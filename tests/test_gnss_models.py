@@ -1,8 +1,6 @@
-"""GNSS building blocks: constellation geometry, geodesy, WLS over random geometries, image method."""
+"""GNSS building blocks: geodesy, WLS over random geometries, image method."""
 
 from __future__ import annotations
-
-from datetime import timedelta
 
 import gnss_worlds as gw
 import numpy as np
@@ -13,49 +11,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from sim import wls
-from sim.constellation import ALMANAC_EPOCH, INCLINATION, MEAN_MOTION, NODE_RATE, OMEGA_EARTH, RADIUS, Constellation
 from sim.geodesy import LocalFrame
 from sim.multipath import FacadeIndex
-
-
-def test_constellation_is_the_nominal_gps_layout():
-    c = Constellation.nominal()
-    assert len(c) == 31 and len(set(c.prn.tolist())) == 31
-    assert len(set(np.round(np.rad2deg(c.node0), 3).tolist())) == 6  # six orbital planes
-    ecef = c.ecef(0.0)
-    r = np.linalg.norm(ecef, axis=1)
-    np.testing.assert_allclose(r, RADIUS)
-    assert 26_550e3 < RADIUS < 26_570e3
-    period_h = 2 * np.pi / MEAN_MOTION / 3600
-    assert 11.96 < period_h < 11.97  # ~11 h 58 min
-    # Over one orbit each satellite reaches latitude +-55 deg (inclination) and no further.
-    t = np.linspace(0.0, 2 * np.pi / MEAN_MOTION, 400)
-    z = np.array([c.ecef(s)[:, 2] for s in t]) / RADIUS
-    np.testing.assert_allclose(np.abs(z).max(axis=0), np.sin(INCLINATION), atol=2e-4)
-    # The ground track repeats after the node has turned once in the Earth frame: ~9.5 s short of a
-    # sidereal day, as measured for the real constellation (Agnew & Larson 2007: 86154.6 s on average).
-    repeat = 2 * np.pi / (OMEGA_EARTH - NODE_RATE)
-    np.testing.assert_allclose(c.ecef(repeat), ecef, atol=1e-3)
-    assert abs(repeat - 86154.6) < 2.0
-
-
-def test_satellites_in_view_over_boston():
-    frame = LocalFrame.at(*gw.ORIGIN)
-    c = Constellation.nominal()
-    counts = []
-    for hour in range(0, 24, 2):
-        enu = frame.enu_of_ecef(c.ecef(hour * 3600.0))
-        up = enu[:, 2] / np.linalg.norm(enu, axis=1)
-        counts.append(int((up > np.sin(np.deg2rad(12.0))).sum()))
-    assert min(counts) >= 5 and 7 <= np.mean(counts) <= 12
-
-
-def test_validity_window():
-    Constellation.seconds_since_epoch(ALMANAC_EPOCH + timedelta(days=179))
-    with pytest.raises(ValueError, match="validity"):
-        Constellation.seconds_since_epoch(ALMANAC_EPOCH - timedelta(days=181))
-    with pytest.raises(ValueError, match="validity"):
-        Constellation.nominal().ecef(200 * 86400.0)
 
 
 @settings(max_examples=100, deadline=None)

@@ -43,8 +43,8 @@ def test_receiver_epoch_sentences_are_valid_and_parse_back():
     for t in rx.epochs(3.0):
         fix = rx.fix(world, motion, t)
     lines = fix.nmea()
-    assert [line[3:6] for line in lines[:3]] == ["GGA", "RMC", "GSA"]
-    assert all(line[3:6] == "GSV" for line in lines[3:])
+    kinds = [line[3:6] for line in lines]
+    assert kinds[:2] == ["GGA", "RMC"] and kinds == ["GGA", "RMC"] + ["GSA"] * 4 + ["GSV"] * (len(lines) - 6)
     for line in lines:
         body, cs = line[1:].split("*")
         assert cs == nmea.checksum(body) and len(line) <= 82
@@ -136,3 +136,53 @@ def test_round_trip_over_positions_times_and_satellites(lat, lon, alt, seconds, 
     for line in lines:
         body, cs = line[1:].split("*")
         assert cs == nmea.checksum(body)
+
+
+def test_multi_gnss_epoch_speaks_nmea_4_10_and_reads_back_every_satellite():
+    # As u-blox and SkyTraq receivers write it (tests/data/nmea/gpsd/skytraq-PX1172RH_DS.log): GNGGA, GNRMC, a GNGSA per
+    # system with its system id, GPGSV/GLGSV/GAGSV/GBGSV with the signal id; GLONASS numbered 65-96.
+    import pynmea2
+
+    rx = GnssReceiver(seed=1)
+    world, motion = gw.open_water(), gw.Straight(speed=2.0)
+    for t in rx.epochs(2.0):
+        fix = rx.fix(world, motion, t)
+    lines = fix.nmea()
+    talkers = [line[1:6] for line in lines]
+    assert talkers[:6] == ["GNGGA", "GNRMC", "GNGSA", "GNGSA", "GNGSA", "GNGSA"]
+    assert {t for t in talkers[6:]} == {"GPGSV", "GLGSV", "GAGSV", "GBGSV"}
+    ids = {"GPS": 1, "GLONASS": 2, "Galileo": 3, "BeiDou": 4}
+    signal_ids = {"GPGSV": "1", "GLGSV": "1", "GAGSV": "7", "GBGSV": "1"}
+    for line in lines:
+        body, cs = line[1:].split("*")
+        assert cs == nmea.checksum(body) and len(line) <= 82
+        parsed = pynmea2.parse(line, check=True)
+        fields = body.split(",")
+        if parsed.sentence_type == "GSA":
+            assert int(fields[-1]) in ids.values()
+        if parsed.sentence_type == "GSV":
+            assert fields[-1] == signal_ids[body[:5]]
+            numbers = [int(n) for n in fields[4:-1:4]]
+            if body.startswith("GL"):
+                assert all(65 <= n <= 96 for n in numbers)
+    gsa_used = {}
+    for line in lines[2:6]:
+        fields = line.split("*")[0].split(",")
+        gsa_used[int(fields[-1])] = {int(n) for n in fields[3:15] if n}
+    for sat in fix.sats:
+        number = sat.prn + (64 if sat.system == "GLONASS" else 0)
+        assert (number in gsa_used[ids[sat.system]]) == sat.used
+    back = epoch(lines)
+    assert back.quality == 1 and back.num_sats == fix.num_sats
+    assert back.lat == pytest.approx(fix.lat, abs=1e-7) and back.lon == pytest.approx(fix.lon, abs=1e-7)
+    got = {(s.system, s.svid): (s.signal, s.used, s.el_deg, s.az_deg) for s in back.sats}
+    want = {(s.system, s.prn): (s.signal, s.used, round(s.el_deg), round(s.az_deg) % 360) for s in fix.sats}
+    assert got == want and {s.system for s in back.sats} == set(ids)
+
+
+def test_gps_only_receiver_keeps_the_nmea_2_3_dialect():
+    rx = GnssReceiver(seed=1, constellations=["GPS"])
+    fix = rx.fix(gw.open_water(), gw.Straight(), 0.0)
+    lines = fix.nmea()
+    assert [line[1:6] for line in lines[:3]] == ["GPGGA", "GPRMC", "GPGSA"] and all(line[1:6] == "GPGSV" for line in lines[3:])
+    assert lines[2].split("*")[0].count(",") == 17  # no system id field

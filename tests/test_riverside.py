@@ -92,17 +92,17 @@ def test_satellite_behind_a_crown_loses_the_documented_db_and_one_behind_a_build
     parts = [Part("crown", "foliage", VEGETATION, ball), Part("block", "building", CONCRETE, block)]
     rx = GnssReceiver(seed=0, filter_mode="raw", noise=gw.NOISE_OFF)
     fix = rx.fix(_sky_world(parts, crowns), still, 0.0)
-    by_prn = {s.prn: (s, t) for s, t in zip(fix.sats, fix.truth.sats)}
-    report, truth = by_prn[leafy.prn]
+    by_prn = {(s.system, s.prn): (s, t) for s, t in zip(fix.sats, fix.truth.sats)}  # numbers repeat across systems
+    report, truth = by_prn[(leafy.system, leafy.prn)]
     assert truth.los and report.used
     loss = rx.config.foliage_loss_db_per_m * 2 * radius  # through the centre: a chord of one diameter
     assert report.snr == pytest.approx(leafy.snr - loss, abs=1e-9)
-    assert not by_prn[walled.prn][1].los
+    assert not by_prn[(walled.system, walled.prn)][1].los
     for s in fix.sats:
-        if s.prn not in (leafy.prn, walled.prn) and s.snr:
-            assert s.snr == pytest.approx(next(o.snr for o in open_fix.sats if o.prn == s.prn), abs=1e-9)
+        if (s.system, s.prn) not in ((leafy.system, leafy.prn), (walled.system, walled.prn)) and s.snr:
+            assert s.snr == pytest.approx(next(o.snr for o in open_fix.sats if (o.system, o.prn) == (s.system, s.prn)), abs=1e-9)
     dense = GnssReceiver(seed=0, filter_mode="raw", noise=gw.NOISE_OFF, foliage_loss_db_per_m=10.0)
-    report = next(s for s in dense.fix(_sky_world(parts, crowns), still, 0.0).sats if s.prn == leafy.prn)
+    report = next(s for s in dense.fix(_sky_world(parts, crowns), still, 0.0).sats if (s.system, s.prn) == (leafy.system, leafy.prn))
     assert report.snr == 0.0 and not report.used  # 60 dB of foliage: below the tracking threshold
 
 

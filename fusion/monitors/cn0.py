@@ -39,7 +39,8 @@ L1 C/A reports, to the most reported signal's, which keeps its prior), and so is
 gap of its residuals' `mid_q` and `high_q` quantiles, pooled over all its satellites, so it also
 holds the spread between them; never below the template's sigma). The template is learned from
 every signal's reports less their offsets. A receiver that reports GPS L1 C/A only (the
-simulator) never uses an offset: its template, jitter and verdicts are the single-template ones.
+simulator with `[gnss] constellations = ["GPS"]`) never uses an offset: its template, jitter and
+verdicts are the single-template ones; the simulator's other systems sit at the priors' offsets.
 
 Between satellites: direct signals do not all sit on one line. Satellites transmit at different
 powers (GPS L1 C/A differs by a few dB between satellite blocks: Steigenberger, Thoelert and
@@ -88,7 +89,7 @@ from fusion.observation import FixObservation
 from fusion.verdict import Verdict
 
 REFERENCE = "GPS L1 C/A"
-"""The signal every offset is relative to (the simulator's only one)."""
+"""The signal every offset is relative to (a GPS-only receiver's only one)."""
 MAD_TO_SIGMA = float(1.0 / norm.ppf(0.75))
 """The median absolute deviation of normal samples times this is their standard deviation (1.4826)."""
 MAD_RELATIVE_SE = math.sqrt(1.0 / (2.0 * 0.3675))

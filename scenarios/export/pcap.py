@@ -19,7 +19,8 @@ the factory bytes 0x37 (strongest return) and 0x21 (HDL-32E).
   sensors (VLP-16, VLP-32C, VLS-128) give "the ratio of data packets to position packets is about
   14 to 1"; the HDL-32E manual states no rate. 512-byte payload with the HDL-32E layout: gyro,
   temperature and accelerometer fields (left zero), the timestamp at byte 198, the PPS status at
-  202 (2 = locked), and at 206 the $GPRMC sentence with CR/LF, null-padded (a sentence with
+  202 (2 = locked), and at 206 the $GPRMC sentence (GP talker whatever systems the receiver tracks: a
+  multi-GNSS receiver feeding the sensor is set to it, e.g. u-blox CFG-NMEA main talker ID) with CR/LF, null-padded (a sentence with
   5-decimal minutes is longer than the manual's 72-byte field; the bytes after it are unused). The
   sentence is the receiver's RMC of its latest fix before the packet; before the first fix the
   NMEA and PPS fields are zero, as the manuals describe a sensor without GPS. A fix after the last
@@ -158,7 +159,7 @@ def position_packets(fixes: list[GnssFix], times: np.ndarray, stamps: np.ndarray
     packets = np.zeros(len(times), POSITION)
     packets["stamp"] = stamps
     latest = np.searchsorted([fix.stamp for fix in fixes], times, side="right") - 1
-    sentences = [(rmc(fix) + "\r\n").encode("ascii") for fix in fixes]
+    sentences = [(rmc(fix, gps_talker=True) + "\r\n").encode("ascii") for fix in fixes]  # the $GPRMC the manuals name
     has_fix = latest >= 0
     packets["nmea"][has_fix] = [sentences[i] for i in latest[has_fix]]
     packets["pps"][has_fix] = PPS_LOCKED

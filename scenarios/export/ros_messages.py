@@ -18,7 +18,8 @@
 - nmea_msgs/Sentence, frame `gps`: one per NMEA sentence of a fix (GGA, RMC, GSA, GSV...), its stamp.
 - gps_msgs/GPSFix, frame `gps`: the receiver's report as gpsd_client fills it
   (gpsd_client/src/client.cpp, swri-robotics/gps_umd branch ros2-devel, 4892806): the satellites
-  (used PRNs; each visible one's PRN, elevation, azimuth and SNR as int32, truncated as its C++
+  (used PRNs; each visible one's PRN, in gpsd's numbering of all systems, sim.nmea.systems.gpsd_prn;
+  elevation, azimuth and SNR as int32, truncated as its C++
   conversion does) and status always; with a solution (quality 1 or 6, gpsd's 2D/3D mode) status
   STATUS_FIX, time (UNIX seconds; the driver's own divides nanoseconds by 1e6, not copied),
   position, track (deg from north), speed (m/s) and the DOPs in float64; without one status
@@ -60,6 +61,7 @@ from scipy.spatial.transform import Rotation
 from riverbench.unixtime import scenario_unix_ns
 from scenarios.export import dialect
 from sim.gnss_fix import GnssFix
+from sim.nmea.systems import gpsd_prn
 from sim.scan import Scan
 
 LIDAR_FRAME = "velodyne"
@@ -225,8 +227,8 @@ def gps_fix(store: Typestore, ns: int, fix: GnssFix):
     """The fix as gpsd_client's gps_msgs/GPSFix (see the module docstring)."""
     types = store.types
     status_type, fix_type = types["gps_msgs/msg/GPSStatus"], types["gps_msgs/msg/GPSFix"]
-    used = [s.prn for s in fix.sats if s.used]
-    visible = np.array([(s.prn, s.el_deg, s.az_deg, s.snr) for s in fix.sats], dtype=np.float64).reshape(-1, 4)
+    used = [gpsd_prn(s.system, s.prn) for s in fix.sats if s.used]
+    visible = np.array([(gpsd_prn(s.system, s.prn), s.el_deg, s.az_deg, s.snr) for s in fix.sats], dtype=np.float64).reshape(-1, 4)
     status = status_type(
         header=header(store, ns, ""),
         satellites_used=len(used),

@@ -53,6 +53,7 @@ def assemble(scenario: Scenario, world: worlds.World | None = None) -> Assembly:
     )
     receiver = sim.GnssReceiver(seed=scenario.seed, **scenario.gnss.model_dump(exclude={"rate_hz"}), rate_hz=scenario.gnss.rate_hz)
     t_start, t_end = scenario.stretch.times(planned)
+    receiver.check_covers(t_start, t_end)  # a stretch beyond the ephemeris file: one line before anything runs
     vessel_run = VesselRun.build(scenario, world, planned, lidar, receiver, t_start, t_end)
     # the IMU and the compass exist only when an estimator is fed them (the default stack simulates neither)
     if scenario.imu is not None:

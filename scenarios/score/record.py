@@ -182,8 +182,8 @@ class Recorder:
         add("hdop", float(fix.hdop))
         add("error", np.asarray(truth.error, dtype=float) if truth is not None and fix.quality else nan3)
         add("open_sky_error", np.asarray(truth.open_sky_error, dtype=float) if truth is not None else nan3)
-        nlos = {s.prn for s in truth.sats if s.nlos} if truth is not None else set()
-        add("nlos_used", bool(fix.quality in POSITION_QUALITIES and any(s.used and s.prn in nlos for s in fix.sats)))
+        nlos = {(s.system, s.prn) for s in truth.sats if s.nlos} if truth is not None else set()
+        add("nlos_used", bool(fix.quality in POSITION_QUALITIES and any(s.used and (s.system, s.prn) in nlos for s in fix.sats)))
         for eid, (trusted, statistic) in verdicts.items():
             add(f"trusted:{eid}", bool(trusted))
             add(f"stat:{eid}", float(statistic))

@@ -96,6 +96,16 @@ def by_range(number: int) -> tuple[str, int]:
     return UNKNOWN, number
 
 
+GPSD_OFFSETS = {GPS: 0, SBAS: 0, GLONASS: 64, QZSS: 192, GALILEO: 300, BEIDOU: 400, NAVIC: 500}
+"""gpsd's one numbering of all systems' satellites (include/gps.h satellite_t PRN: GLONASS 65-96, QZSS 193-202,
+Galileo 301-336, BeiDou 401-463), which gpsd_client passes on in gps_msgs/GPSStatus."""
+
+
+def gpsd_prn(system: str, svid: int) -> int:
+    """A satellite's number in gpsd's numbering (GPSD_OFFSETS) from its system and number within it."""
+    return svid + GPSD_OFFSETS.get(system, 0)
+
+
 def in_system(system: str, number: int) -> tuple[str, int]:
     """(system, svid) of a satellite number a single system's talker or system id lists, in any of the ranges receivers use for it."""
     if system == GPS:

@@ -1,6 +1,12 @@
-"""NMEA 0183 (v2.3) sentences the simulated GPS receiver writes per epoch (GGA, RMC, GSA, GSV).
+"""NMEA 0183 sentences the simulated GNSS receiver writes per epoch (GGA, RMC, GSA, GSV).
 
-Talker "GP" (GPS only). Latitude/longitude carry 5 decimals of minutes (~2 cm), time 2 decimals of
+A GPS-only receiver writes NMEA 2.3 with talker "GP". A multi-GNSS receiver writes NMEA 4.10 as u-blox (M8 and
+later with NMEA 4.10 output) and SkyTraq receivers do (tests/data/nmea/gpsd/skytraq-PX1172RH_DS.log): GNGGA and
+GNRMC (with 4.10's navigational status field, V: no integrity information), one GNGSA per tracked system ending in
+its NMEA 4.10 system id (1 GPS, 2 GLONASS, 3 Galileo, 4 BeiDou), and each system's satellites in its own GSV (GP,
+GL, GA, GB) ending in the 4.10 signal id (sim.nmea.systems.SIGNALS: 1 for GPS L1 C/A, GLONASS L1OF and BeiDou B1I,
+7 for Galileo E1-B/C), numbered as those receivers do: GPS PRN, GLONASS 65-96 (slot + 64), Galileo and BeiDou
+their own SV id. Latitude/longitude carry 5 decimals of minutes (~2 cm), time 2 decimals of
 seconds, as common consumer receivers write them. GGA's altitude field holds the fix's altitude
 with a geoid separation of 0 (the worlds' heights are taken as orthometric). sim.nmea.read reads
 them back (and what real receivers write).
@@ -17,7 +23,15 @@ from datetime import datetime, timedelta
 from functools import reduce
 from typing import Protocol
 
+from sim.nmea.systems import BEIDOU, GALILEO, GLONASS, GPS, PRIMARY, SIGNALS, SYSTEM_IDS
+
 TALKER = "GP"
+MULTI_TALKER = "GN"
+SYSTEM_TALKERS = {GPS: "GP", GLONASS: "GL", GALILEO: "GA", BEIDOU: "GB"}
+"""The talker of each system's GSV (NMEA 4.10; u-blox, SkyTraq)."""
+NUMBER_OFFSET = {GLONASS: 64}
+"""Added to a satellite's number within its system in GSA and GSV: GLONASS slot 1-24 -> 65-88 (NMEA 4.10)."""
+SYSTEM_ID = {name: number for number, name in SYSTEM_IDS.items()}
 KNOT_MPS = 1852.0 / 3600.0
 MAX_GSA_PRNS = 12
 SATS_PER_GSV = 4
@@ -36,6 +50,10 @@ class Satellite(Protocol):
     def snr(self) -> float: ...
     @property
     def used(self) -> bool: ...
+    @property
+    def system(self) -> str: ...
+    @property
+    def signal(self) -> str: ...
 
 
 class Fix(Protocol):
@@ -65,6 +83,17 @@ class Fix(Protocol):
     def course_deg(self) -> float: ...
     @property
     def sats(self) -> Sequence[Satellite]: ...
+    @property
+    def systems(self) -> tuple[str, ...]: ...
+
+
+def systems(fix: Fix) -> tuple[str, ...]:
+    """The systems the receiver tracks: the fix's own list, else those of its satellites (GPS when none)."""
+    return fix.systems or tuple(dict.fromkeys(s.system for s in fix.sats)) or (GPS,)
+
+
+def _multi(fix: Fix) -> bool:
+    return systems(fix) != (GPS,)
 
 
 def checksum(body: str) -> str:
@@ -118,14 +147,15 @@ def gga(fix: Fix) -> str:
     alt = _num(fix.alt if valid else math.nan, ".2f")
     age, station = _differential(fix)
     body = (
-        f"{TALKER}GGA,{_time(_utc(fix))},{lat},{ns},{lon},{ew},{fix.quality:d},{fix.num_sats:02d},"
+        f"{MULTI_TALKER if _multi(fix) else TALKER}GGA,{_time(_utc(fix))},{lat},{ns},{lon},{ew},{fix.quality:d},{fix.num_sats:02d},"
         f"{_num(fix.hdop, '.2f')},{alt},M,{'0.0' if alt else ''},M,{age},{station}"
     )
     return sentence(body)
 
 
-def rmc(fix: Fix) -> str:
-    """Recommended minimum: time, status, position, speed over ground (knots), course, date, mode."""
+def rmc(fix: Fix, gps_talker: bool = False) -> str:
+    """Recommended minimum: time, status, position, speed over ground (knots), course, date, mode. `gps_talker`: always
+    the NMEA 2.3 $GPRMC, as a receiver set to the GP main talker writes it for a device that reads only that (a Velodyne)."""
     when = _utc(fix)
     valid = fix.quality != 0
     lat, ns = _angle(fix.lat if valid else math.nan, 2, "NS")
@@ -134,30 +164,50 @@ def rmc(fix: Fix) -> str:
     course = _num(fix.course_deg if valid else math.nan, ".2f")
     mode = {0: "N", 1: "A", 6: "E"}.get(fix.quality, "A")
     body = f"{TALKER}RMC,{_time(when)},{'A' if valid else 'V'},{lat},{ns},{lon},{ew},{speed},{course},{when:%d%m%y},,,{mode}"
+    if _multi(fix) and not gps_talker:
+        body = f"{MULTI_TALKER}{body[2:]},V"
     return sentence(body)
 
 
-def gsa(fix: Fix) -> str:
-    """DOP and the satellites used (at most 12 listed); fix type 3 when a 3-D solution was computed."""
-    used = [s.prn for s in fix.sats if s.used][:MAX_GSA_PRNS]
-    fix_type = 3 if math.isfinite(fix.pdop) and used else 1
+def _number(sat: Satellite) -> int:
+    return sat.prn + NUMBER_OFFSET.get(sat.system, 0)
+
+
+def gsa(fix: Fix, system: str | None = None) -> str:
+    """DOP and the satellites used (at most 12 listed); fix type 3 when a 3-D solution was computed. With `system`:
+    that system's satellites only, talker GN and its NMEA 4.10 system id last (one such sentence per system)."""
+    used = [_number(s) for s in fix.sats if s.used and (system is None or s.system == system)][:MAX_GSA_PRNS]
+    fix_type = 3 if math.isfinite(fix.pdop) and any(s.used for s in fix.sats) else 1
     prns = [f"{p:02d}" for p in used] + [""] * (MAX_GSA_PRNS - len(used))
-    body = f"{TALKER}GSA,A,{fix_type},{','.join(prns)},{_num(fix.pdop, '.2f')},{_num(fix.hdop, '.2f')},{_num(fix.vdop, '.2f')}"
+    talker = TALKER if system is None else MULTI_TALKER
+    body = f"{talker}GSA,A,{fix_type},{','.join(prns)},{_num(fix.pdop, '.2f')},{_num(fix.hdop, '.2f')},{_num(fix.vdop, '.2f')}"
+    if system is not None:
+        body += f",{SYSTEM_ID[system]}"
     return sentence(body)
 
 
-def gsv(fix: Fix) -> list[str]:
-    """Satellites in view, four per sentence: PRN, elevation, azimuth (deg), SNR (dB-Hz, empty if not tracked)."""
-    sats = sorted(fix.sats, key=lambda s: s.prn)
+def gsv(fix: Fix, system: str | None = None) -> list[str]:
+    """Satellites in view, four per sentence: number, elevation, azimuth (deg), SNR (dB-Hz, empty if not tracked). With
+    `system`: that system's satellites under its own talker, the NMEA 4.10 signal id last (one group per system)."""
+    sats = sorted((s for s in fix.sats if system is None or s.system == system), key=_number)
     total = max(1, math.ceil(len(sats) / SATS_PER_GSV))
+    talker = TALKER if system is None else SYSTEM_TALKERS[system]
+    tail = []
+    if system is not None:
+        signal_ids = {name: number for number, name in SIGNALS[system].items()}
+        tail = [f"{signal_ids[sats[0].signal if sats else PRIMARY[system]]:X}"]
     out = []
     for index in range(total):
         chunk = sats[index * SATS_PER_GSV : (index + 1) * SATS_PER_GSV]
-        fields = [f"{s.prn:02d},{round(s.el_deg):02d},{round(s.az_deg) % 360:03d},{'' if s.snr <= 0 else f'{round(s.snr):02d}'}" for s in chunk]
-        out.append(sentence(",".join([f"{TALKER}GSV,{total},{index + 1},{len(sats):02d}", *fields])))
+        fields = [f"{_number(s):02d},{round(s.el_deg):02d},{round(s.az_deg) % 360:03d},{'' if s.snr <= 0 else f'{round(s.snr):02d}'}" for s in chunk]
+        out.append(sentence(",".join([f"{talker}GSV,{total},{index + 1},{len(sats):02d}", *fields, *tail])))
     return out
 
 
 def fix_sentences(fix: Fix) -> list[str]:
-    """All sentences of one epoch in the order receivers write them: GGA, RMC, GSA, GSV..."""
-    return [gga(fix), rmc(fix), gsa(fix), *gsv(fix)]
+    """All sentences of one epoch in the order receivers write them: GGA, RMC, GSA, GSV... (multi-GNSS: a GSA per
+    system, then each system's GSV group; module docstring)."""
+    if not _multi(fix):
+        return [gga(fix), rmc(fix), gsa(fix), *gsv(fix)]
+    tracked = systems(fix)
+    return [gga(fix), rmc(fix), *(gsa(fix, s) for s in tracked), *(line for s in tracked for line in gsv(fix, s))]

@@ -186,7 +186,7 @@ def test_a_time_outside_the_file_is_one_clear_error(tmp_path):
 def test_receiver_tracks_the_chosen_systems_at_their_cn0():
     world, still = gw.open_water(), gw.Static()
     gps = GnssReceiver(constellations=["GPS"], **NOISE_OFF).fix(world, still, 0.0)
-    assert {s.system for s in gps.sats} == {"GPS"} and gps.quality == 1
+    assert {s.system for s in gps.sats} == {"GPS"} and gps.quality == 2  # the default receiver is SBAS-corrected
     rx = GnssReceiver(**NOISE_OFF)
     fix = rx.fix(world, still, 0.0)
     assert {s.system for s in fix.sats} == {NMEA_SYSTEM[name] for name in ("GPS", "GLONASS", "GALILEO", "BEIDOU")}

@@ -538,7 +538,15 @@ def study(
     from scenarios.study.plan import StudyPlan, parse_stretch
     from scenarios.study.study import default_out_dir, run_study
 
-    bar = Progress(TextColumn("[bold]study[/]"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=console, disable=quiet)
+    bar = Progress(
+        TextColumn("[bold]study[/]"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=console,
+        disable=quiet,
+    )
     task = bar.add_task("", total=None)
 
     def progress(done: int, total: int, what: str) -> None:

@@ -51,7 +51,7 @@ def success_curve(rows: list[dict], mids: list[str], band: tuple[int, int]) -> d
     """Finding f, per matcher: success rate and count per points-per-scan bin (BIN_POINTS wide), and over the study's
     band and below it."""
     top = max([r["points"] for r in rows] + [band[1]])
-    edges = np.arange(0, top + BIN_POINTS, BIN_POINTS)
+    edges = np.arange(0, (top // BIN_POINTS + 2) * BIN_POINTS, BIN_POINTS)  # the last bin holds the largest scan
     out: dict = {"bin_edges": edges.tolist(), "band": list(band), "matchers": {}}
     for mid in mids:
         c = columns(rows, mid)
@@ -91,16 +91,19 @@ def outliers(rows: list[dict], mids: list[str]) -> dict:
 def compose(pieces: list[ChainPiece]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(t, truth, chained poses, ok) over the whole stretch: each piece's odometry continued from where the previous
     piece's ended (consecutive pieces share their boundary scan, kept once)."""
-    t, truth, pose, ok = [], [], [], []
+    t: list[np.ndarray] = []
+    truth: list[np.ndarray] = []
+    pose: list[np.ndarray] = []
+    ok: list[np.ndarray] = []
     for i, p in enumerate(pieces):
-        poses = p.track.pose
-        if i:
-            finite = np.nonzero(np.isfinite(poses[:, 0, 0]))[0]
-            start = poses[finite[0]] if len(finite) else np.full((4, 4), math.nan)
-            poses = pose[-1][-1] @ np.linalg.inv(start) @ poses if len(finite) else poses
-            t.append(p.t[1:]), truth.append(p.truth[1:]), pose.append(poses[1:]), ok.append(p.track.ok[1:])
-        else:
-            t.append(p.t), truth.append(p.truth), pose.append(poses), ok.append(p.track.ok)
+        poses, skip = p.track.pose, 1 if i else 0
+        finite = np.nonzero(np.isfinite(poses[:, 0, 0]))[0]
+        if i and len(finite):  # continue from the previous piece's last pose
+            poses = pose[-1][-1] @ np.linalg.inv(poses[finite[0]]) @ poses
+        t.append(p.t[skip:])
+        truth.append(p.truth[skip:])
+        pose.append(poses[skip:])
+        ok.append(p.track.ok[skip:])
     return np.concatenate(t), np.concatenate(truth), np.concatenate(pose), np.concatenate(ok)
 
 

@@ -39,7 +39,9 @@ class StudyPlan:
     """Processes."""
 
     def __post_init__(self) -> None:
-        if not (self.burst_spacing_s > 0 and self.burst_scans >= 2 and min(self.pcl6d_every, self.chain_stride, self.chain_segments, self.workers) >= 1):
+        if not (
+            self.burst_spacing_s > 0 and self.burst_scans >= 2 and min(self.pcl6d_every, self.chain_stride, self.chain_segments, self.workers) >= 1
+        ):
             raise ValueError("study plan: need burst_spacing_s > 0, burst_scans >= 2 and pcl6d_every, chain_stride, chain_segments, workers >= 1")
 
     def as_dict(self) -> dict:

@@ -31,7 +31,12 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
         Table(
             ["finding", "the study", "the bench", "verdict"],
             [
-                [Cell(f"{k}. {f['title']}", css="text"), Cell(f["claim"], css="text"), Cell(f["headline"], css="text"), Cell(f["verdict"], css=VERDICT_CSS[f["verdict"]])]
+                [
+                    Cell(f"{k}. {f['title']}", css="text"),
+                    Cell(f["claim"], css="text"),
+                    Cell(f["headline"], css="text"),
+                    Cell(f["verdict"], css=VERDICT_CSS[f["verdict"]]),
+                ]
                 for k, f in tree["findings"].items()
             ],
             note=f"verdict: agrees when every check of the finding holds, disagrees when none does, partly otherwise ({', '.join(VERDICTS)}); "
@@ -45,7 +50,12 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
             Table(
                 ["check", "the study", "the bench", "holds"],
                 [
-                    [Cell(c["claim"], css="text"), Cell(c["study"], css="text"), Cell(c["measured"], css="text"), Cell(_holds(c["holds"]), css=_css(c["holds"]))]
+                    [
+                        Cell(c["claim"], css="text"),
+                        Cell(c["study"], css="text"),
+                        Cell(c["measured"], css="text"),
+                        Cell(_holds(c["holds"]), css=_css(c["holds"])),
+                    ]
                     for c in f["checks"]
                 ],
             ),

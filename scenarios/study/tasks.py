@@ -5,7 +5,9 @@ over a piece of the stretch. Each returns plain arrays (small: never a scan)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, cast
 
 import numpy as np
 
@@ -17,6 +19,7 @@ from scenarios.pipeline.stream import scan_times
 from scenarios.score.record import FixTable, MatcherTrack, Recorder
 from scenarios.spec.scenario import Scenario
 from sim.magnetic_compass import CompassConfig, MagneticCompass
+from sim.scene import Scene
 
 OUTLIER_KEYS = ("outlier_share", "prealign_rejected_share", "inlier_share", "plane_outlier_share")
 """The outlier diagnostics the matchers report in MatchResult.info (pcl6d: outlier_share of its point-to-plane fit,
@@ -55,7 +58,7 @@ def bursts(job: tuple[Scenario, list[float], list[bool], int]) -> list[dict]:
     outcome, points, wall time, error against the exact relative lidar motion and outlier diagnostics."""
     scenario, starts, with_pcl6d, n = job
     stack = assemble(scenario)
-    lidar, trajectory, world = stack.lidar, stack.trajectory, stack.vessel_run.world
+    lidar, trajectory, world = stack.lidar, stack.trajectory, cast(Scene, stack.vessel_run.world)
     rows = []
     for t0, pcl6d in zip(starts, with_pcl6d):
         scans = [lidar.scan(world, trajectory, float(t0) + k * lidar.revolution_s) for k in range(n)]
@@ -108,7 +111,7 @@ def chain(job: tuple[Scenario, str, int, int, int]) -> ChainPiece:
     stretch from index first to last (of those)."""
     scenario, mid, first, last, stride = job
     stack = assemble(scenario)
-    lidar, trajectory, world = stack.lidar, stack.trajectory, stack.vessel_run.world
+    lidar, trajectory, world = stack.lidar, stack.trajectory, cast(Scene, stack.vessel_run.world)
     spec = scenario.matcher_spec(mid)
     m = matchers.create(spec.ref, **spec.params)
     recorder = Recorder([mid], [], trajectory.mount)
@@ -138,4 +141,5 @@ def compass(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
 def run_task(job: tuple[str, object]):
     """Dispatch one (kind, argument) job in a worker: kind is gnss, bursts, chain or compass."""
     kind, arg = job
-    return {"gnss": gnss, "bursts": bursts, "chain": chain, "compass": compass}[kind](arg)
+    handlers: dict[str, Callable[[Any], object]] = {"gnss": gnss, "bursts": bursts, "chain": chain, "compass": compass}
+    return handlers[kind](arg)

@@ -61,7 +61,10 @@ def _holds(value, test) -> bool | None:
 def checks_a(m: dict, finding: Finding) -> list[Check]:
     out = []
     for name, s in m["structures"].items():
-        measured = f"{_f(s['blackout_s'], '.1f', ' s')} without a measured fix ({_f(s['quality0_s'], '.1f', ' s')} quality 0, truth: {_f(s['los_below_4_s'], '.1f', ' s')} with < 4 satellites in sight)"
+        measured = (
+            f"{_f(s['blackout_s'], '.1f', ' s')} without a measured fix ({_f(s['quality0_s'], '.1f', ' s')} quality 0, "
+            f"truth: {_f(s['los_below_4_s'], '.1f', ' s')} with < 4 satellites in sight)"
+        )
         out.append(Check(f"GPS drops out under {name}", "drops out", measured, s["blackout_s"] > 0.0))
     return out
 
@@ -73,7 +76,8 @@ def checks_b(m: dict, finding: Finding) -> list[Check]:
         Check(
             f"the first {m['first_fixes']} fixes after an outage are off by more than open water's p95 (in >= {WRONG_SHARE:.0%} of outages)",
             "a wrong estimate",
-            f"{_f(m['wrong_share'] * 100 if n else math.nan, '.0f', ' %')} of {n} outages; median {_f(m['first_mean_m_median'], '.2f', ' m')} vs p95 {_f(p95, '.2f', ' m')}",
+            f"{_f(m['wrong_share'] * 100 if n else math.nan, '.0f', ' %')} of {n} outages; "
+            f"median {_f(m['first_mean_m_median'], '.2f', ' m')} vs p95 {_f(p95, '.2f', ' m')}",
             _holds(m["wrong_share"], lambda v: v >= WRONG_SHARE),
         ),
         Check(
@@ -112,8 +116,18 @@ def checks_d(m: dict, finding: Finding) -> list[Check]:
     limit = finding.figures["open_water_error_m"]
     e = m["error"]
     return [
-        Check(f"open-water p95 horizontal error < {limit:g} m", f"< {limit:g} m", f"{_f(e['p95'], '.2f', ' m')} ({m['fixes']} fixes)", _holds(e["p95"], lambda v: v < limit)),
-        Check(f"open-water median horizontal error < {limit:g} m", f"< {limit:g} m", _f(e["median"], ".2f", " m"), _holds(e["median"], lambda v: v < limit)),
+        Check(
+            f"open-water p95 horizontal error < {limit:g} m",
+            f"< {limit:g} m",
+            f"{_f(e['p95'], '.2f', ' m')} ({m['fixes']} fixes)",
+            _holds(e["p95"], lambda v: v < limit),
+        ),
+        Check(
+            f"open-water median horizontal error < {limit:g} m",
+            f"< {limit:g} m",
+            _f(e["median"], ".2f", " m"),
+            _holds(e["median"], lambda v: v < limit),
+        ),
     ]
 
 
@@ -123,14 +137,24 @@ def checks_e(m: dict, finding: Finding) -> list[Check]:
     p, b = m.get("pcl6d", {}), m.get("bev3dof", {})
     nan = math.nan
     return [
-        Check(f"Method 1 (pcl6d) runs at {lo:g}-{hi:g} Hz", f"{lo:g}-{hi:g} Hz", _f(p.get("hz", nan), ".1f", " Hz"), _holds(p.get("hz", nan), lambda v: lo <= v <= hi)),
+        Check(
+            f"Method 1 (pcl6d) runs at {lo:g}-{hi:g} Hz",
+            f"{lo:g}-{hi:g} Hz",
+            _f(p.get("hz", nan), ".1f", " Hz"),
+            _holds(p.get("hz", nan), lambda v: lo <= v <= hi),
+        ),
         Check(
             f"Method 1's time grows with the points per scan (Spearman > {WEAK_RHO})",
             "depends on points",
             f"rho {_f(p.get('spearman_seconds_points', nan))}",
             _holds(p.get("spearman_seconds_points", nan), lambda v: v > WEAK_RHO),
         ),
-        Check(f"Method 2 (bev3dof) runs at >= {floor:g} Hz", f">= {floor:g} Hz", _f(b.get("hz", nan), ".1f", " Hz"), _holds(b.get("hz", nan), lambda v: v >= floor)),
+        Check(
+            f"Method 2 (bev3dof) runs at >= {floor:g} Hz",
+            f">= {floor:g} Hz",
+            _f(b.get("hz", nan), ".1f", " Hz"),
+            _holds(b.get("hz", nan), lambda v: v >= floor),
+        ),
         Check(
             "Method 2 is less precise (median translation error of its ok matches above Method 1's)",
             "lower precision",
@@ -234,7 +258,8 @@ def headline(key: str, m: dict) -> str:
         )
     if key == "f":
         return "; ".join(
-            f"{mid} {_f(100 * v['band_success'], '.0f', ' %')} ok in band ({v['band_count']}), {_f(100 * v['below_success'], '.0f', ' %')} below ({v['below_count']})"
+            f"{mid} {_f(100 * v['band_success'], '.0f', ' %')} ok in band ({v['band_count']}), "
+            f"{_f(100 * v['below_success'], '.0f', ' %')} below ({v['below_count']})"
             for mid, v in m["matchers"].items()
         )
     if key == "g":

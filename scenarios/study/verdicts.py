@@ -253,7 +253,8 @@ def headline(key: str, m: dict) -> str:
         return f"open-water error p95 {_f(m['error']['p95'], '.2f', ' m')}, median {_f(m['error']['median'], '.2f', ' m')} ({m['fixes']} fixes)"
     if key == "e":
         return "; ".join(
-            f"{mid} {_f(v['hz'], '.0f', ' Hz')}, {_f(100 * v['unresolved'], '.0f', ' %')} unresolved, {_f(v['error_m_median'], '.3f', ' m')}"
+            f"{mid} {_f(v['hz'], '.0f', ' Hz')} (CPU time: {_f(v.get('cpu_hz', nan), '.0f', ' Hz')}), "
+            f"{_f(100 * v['unresolved'], '.0f', ' %')} unresolved, {_f(v['error_m_median'], '.3f', ' m')}"
             for mid, v in m.items()
         )
     if key == "f":

@@ -129,10 +129,19 @@ def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_f
     }
 
 
+def roc_auc(statistic: np.ndarray, faulty: np.ndarray) -> float:
+    """Area under the ROC of `statistic` as a detector of `faulty` (0.5: chance; NaN without both classes)."""
+    if not (faulty.any() and (~faulty).any()):
+        return math.nan
+    fa, rec, _ = metrics.roc(statistic, faulty)
+    fa, rec = np.r_[fa, 1.0], np.r_[rec, 1.0]
+    return float(np.sum(np.diff(fa) * (rec[1:] + rec[:-1]) / 2.0))
+
+
 def hdop_vs_error(g: GnssSample, windows: list[win.Window], open_hdop_p95: float) -> dict:
-    """Finding c: Spearman correlation of HDOP with the true horizontal error of the measured fixes in the NLOS windows,
-    the area under the ROC of HDOP as a detector of faulty fixes (error > metrics.FAULT_M) over all measured fixes,
-    and the faulty fixes' median HDOP (against open water's p95)."""
+    """Finding c, on the measured fixes in the NLOS windows (where reflections reach the receiver): Spearman correlation
+    of HDOP with the true horizontal error, the area under the ROC of HDOP as a detector of faulty fixes (error >
+    metrics.FAULT_M) and the faulty fixes' median HDOP (against open water's p95); the AUC over every measured fix beside."""
     f = g.fixes
     measured = f.measured
     err, hdop = f.horizontal_error, f.hdop
@@ -141,20 +150,16 @@ def hdop_vs_error(g: GnssSample, windows: list[win.Window], open_hdop_p95: float
         if w.kind == "nlos":
             in_nlos |= (f.t >= w.start) & (f.t < w.end)
     sel = measured & in_nlos
-    rho = float(spearmanr(hdop[sel], err[sel]).statistic) if sel.sum() >= 3 and np.ptp(hdop[sel]) > 0 else math.nan
-    faulty = err[measured] > metrics.FAULT_M
-    auc = math.nan
-    if faulty.any() and (~faulty).any():
-        fa, rec, _ = metrics.roc(hdop[measured], faulty)
-        fa, rec = np.r_[fa, 1.0], np.r_[rec, 1.0]
-        auc = float(np.sum(np.diff(fa) * (rec[1:] + rec[:-1]) / 2.0))
+    rho = float(spearmanr(hdop[sel], err[sel]).statistic) if sel.sum() >= 3 and np.ptp(hdop[sel]) > 0 and np.ptp(err[sel]) > 0 else math.nan
+    faulty = err[sel] > metrics.FAULT_M
     return {
         "nlos_fixes": int(sel.sum()),
         "spearman_nlos": rho,
         "faulty_fixes": int(faulty.sum()),
         "fault_m": metrics.FAULT_M,
-        "roc_auc": auc,
-        "faulty_hdop_median": float(np.median(hdop[measured][faulty])) if faulty.any() else math.nan,
+        "roc_auc": roc_auc(hdop[sel], faulty),
+        "roc_auc_all_fixes": roc_auc(hdop[measured], err[measured] > metrics.FAULT_M),
+        "faulty_hdop_median": float(np.median(hdop[sel][faulty])) if faulty.any() else math.nan,
         "open_water_hdop_p95": open_hdop_p95,
     }
 

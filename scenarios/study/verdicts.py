@@ -98,13 +98,13 @@ def checks_c(m: dict, finding: Finding) -> list[Check]:
             _holds(m["spearman_nlos"], lambda v: v < WEAK_RHO),
         ),
         Check(
-            f"HDOP is a poor detector of fixes off by > {m['fault_m']:g} m (ROC AUC < {POOR_AUC})",
+            f"HDOP is a poor detector of the fixes off by > {m['fault_m']:g} m there (ROC AUC < {POOR_AUC})",
             "not a reliable indicator",
-            f"AUC {_f(m['roc_auc'])} ({m['faulty_fixes']} faulty fixes)",
+            f"AUC {_f(m['roc_auc'])} ({m['faulty_fixes']} faulty fixes in NLOS windows)",
             _holds(m["roc_auc"], lambda v: v < POOR_AUC),
         ),
         Check(
-            "the faulty fixes' HDOP stays low (median within open water's p95)",
+            "those faulty fixes' HDOP stays low (median within open water's p95)",
             "HDOP stays low",
             f"{_f(m['faulty_hdop_median'])} vs {_f(m['open_water_hdop_p95'])}",
             _holds(m["faulty_hdop_median"] - m["open_water_hdop_p95"], lambda v: v <= 0.0),
@@ -248,7 +248,10 @@ def headline(key: str, m: dict) -> str:
             f"(open water p95 {_f(m['open_water_p95_m'], '.2f', ' m')}), back within it after {_f(m['settle_s_median'], '.1f', ' s')} (median)"
         )
     if key == "c":
-        return f"Spearman(HDOP, error) in NLOS windows {_f(m['spearman_nlos'])}; ROC AUC for > {m['fault_m']:g} m {_f(m['roc_auc'])}"
+        return (
+            f"in NLOS windows: Spearman(HDOP, error) {_f(m['spearman_nlos'])}, ROC AUC for > {m['fault_m']:g} m {_f(m['roc_auc'])} "
+            f"({m['faulty_fixes']} of {m['nlos_fixes']} fixes); AUC over every fix {_f(m['roc_auc_all_fixes'])}"
+        )
     if key == "d":
         return f"open-water error p95 {_f(m['error']['p95'], '.2f', ' m')}, median {_f(m['error']['median'], '.2f', ' m')} ({m['fixes']} fixes)"
     if key == "e":

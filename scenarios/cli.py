@@ -523,6 +523,55 @@ def report(
 
 
 @app.command()
+def study(
+    out: Path = typer.Option(None, help="study directory (default runs/study-<UTC time>/)"),
+    seed: int = typer.Option(None, help="the scenario's seed (default charles_river's)"),
+    stretch: str = typer.Option(None, help="START:END route stations in metres (default the whole route, BU Bridge to Charlestown Bridge)"),
+    workers: int = typer.Option(2, min=1, help="processes (1: everything in this one)"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """The field study's findings beside the bench's measurements on the charles_river route, each with a verdict:
+    report.md, report.html, plots/ and study.json (exit 1 if the study fails part-way, 130/143 on Ctrl-C/SIGTERM:
+    nothing written)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from scenarios.study.plan import StudyPlan, parse_stretch
+    from scenarios.study.study import default_out_dir, run_study
+
+    bar = Progress(
+        TextColumn("[bold]study[/]"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=console,
+        disable=quiet,
+    )
+    task = bar.add_task("", total=None)
+
+    def progress(done: int, total: int, what: str) -> None:
+        bar.update(task, completed=done, total=total, description=f"{what} done")
+
+    with stoppable("study interrupted; nothing written"), user_errors():
+        stretch_m = parse_stretch(stretch) if stretch is not None else None
+        target = out if out is not None else default_out_dir()
+        try:
+            with bar:
+                path, tree = run_study(target, seed=seed, stretch_m=stretch_m, plan=StudyPlan(workers=workers), progress=progress)
+        except RuntimeError as exc:
+            errors.print(f"[bold red]study failed:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(1) from None
+    if not quiet:
+        table = Table(title="the field study's findings on the bench")
+        for column in ("finding", "verdict", "the bench"):
+            table.add_column(column)
+        for key, f in tree["findings"].items():
+            table.add_row(f"{key}. {f['title']}", f["verdict"], f["headline"])
+        console.print(table)
+    console.print(f"wrote {path / 'report.html'}", highlight=False)
+
+
+@app.command()
 def export(
     source: str = typer.Argument(..., help="library name, .toml path or run directory (its scenario.toml)"),
     format_: str = typer.Option(..., "--format", help="rosbag2, mcap, kitti, pcd, ply or pcap"),

@@ -1,0 +1,88 @@
+"""What the study measures and where: the charles_river library scenario with every matcher, and how its route is sampled
+so the whole report fits a few minutes on 2 cores (GNSS over every epoch, matchers on bursts of consecutive revolutions
+spaced along the route, one matcher chained over every revolution for the yaw drift)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from scenarios.spec import library
+from scenarios.spec.scenario import Scenario
+
+SCENARIO = "charles_river"
+"""The library scenario the study measures (the field study's route, BU Bridge to Charlestown Bridge)."""
+MATCHERS = ("pcl6d", "bev3dof", "kiss_icp", "gicp")
+"""Every built-in matcher, at its defaults: pcl6d is the study's Method 1, bev3dof its Method 2."""
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """How the route is sampled (each field's default chosen for the 15-minute budget on 2 cores, see docs/guide.md)."""
+
+    burst_spacing_s: float = 10.0
+    """A burst of consecutive revolutions starts every this many seconds along the stretch."""
+    burst_scans: int = 3
+    """Revolutions per burst: the first is a fresh matcher's reference, each later one a match (the last with a motion prior)."""
+    pcl6d_every: int = 2
+    """pcl6d (the slowest matcher) registers every this-many-th burst only."""
+    chain_stride: int = 1
+    """The chained odometry registers every this-many-th revolution (1: every one, as the boat's matcher would)."""
+    chain_segments: int = 4
+    """The chained odometry is computed in this many consecutive pieces (in parallel), composed end to end."""
+    chain_adequate_success: float = 0.95
+    """The chained matcher is the fastest (by the bench's nominal cost) whose burst success is at least this."""
+    post_outage_fixes: int = 10
+    """Finding b: the first this-many measured fixes after each outage."""
+    workers: int = 2
+    """Processes."""
+
+    def __post_init__(self) -> None:
+        if not (
+            self.burst_spacing_s > 0 and self.burst_scans >= 2 and min(self.pcl6d_every, self.chain_stride, self.chain_segments, self.workers) >= 1
+        ):
+            raise ValueError("study plan: need burst_spacing_s > 0, burst_scans >= 2 and pcl6d_every, chain_stride, chain_segments, workers >= 1")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def study_scenario(seed: int | None = None, stretch_m: tuple[float, float] | None = None) -> Scenario:
+    """charles_river from the library with every matcher and no estimator (the study measures sensors and matchers);
+    its expectations, which judge estimators, are left out. stretch_m: (start, end) route stations, default the whole route."""
+    data = library.read(SCENARIO)
+    data = {k: v for k, v in data.items() if k not in ("expect", "fast", "matchers", "estimators")}
+    data["matchers"] = [{"id": m, "kind": m} for m in MATCHERS]
+    data["estimators"] = []
+    if seed is not None:
+        data["seed"] = seed
+    if stretch_m is not None:
+        data["stretch"] = {"start_m": float(stretch_m[0]), "end_m": float(stretch_m[1])}
+    return library.validate(data, f"{SCENARIO}.toml")
+
+
+def parse_stretch(text: str) -> tuple[float, float]:
+    """'START:END' route stations in metres (ValueError naming the problem)."""
+    parts = text.split(":")
+    try:
+        start, end = (float(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"--stretch {text!r}: give START:END, route stations in metres, e.g. 1650:1800") from None
+    if not (np.isfinite(start) and np.isfinite(end) and 0.0 <= start < end):
+        raise ValueError(f"--stretch {text!r}: need 0 <= START < END")
+    return start, end
+
+
+def burst_starts(t_start: float, t_end: float, revolution_s: float, plan: StudyPlan) -> np.ndarray:
+    """Start times of the bursts: every burst_spacing_s from t_start, each whole burst inside the stretch."""
+    last = t_end - plan.burst_scans * revolution_s
+    if last < t_start:
+        return np.zeros(0)
+    return t_start + np.arange(int(np.floor((last - t_start) / plan.burst_spacing_s + 1e-9)) + 1) * plan.burst_spacing_s
+
+
+def chain_pieces(n_scans: int, segments: int) -> list[tuple[int, int]]:
+    """(first, last) scan indices of each piece of the chain; consecutive pieces share their boundary scan."""
+    cuts = np.unique(np.linspace(0, n_scans - 1, max(1, segments) + 1).round().astype(int))
+    return [(int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])] if len(cuts) > 1 else []

@@ -1,0 +1,157 @@
+"""`riverbench study`: measure the field study's findings on the charles_river route and write the study directory.
+
+Two rounds of jobs on worker processes (scenarios.batch.workers): the receiver over every epoch and the matchers on
+bursts of revolutions, then the chained odometry of the fastest adequate matcher (its pieces in parallel) and the compass.
+The directory (report.md, report.html, plots/*.png, study.json) is written under a temporary name and renamed at the
+end: a study that fails or is interrupted (Ctrl-C, SIGTERM) leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from riverbench import provenance
+from scenarios.batch.workers import run_jobs
+from scenarios.pipeline.assembly import assemble
+from scenarios.pipeline.matcher_pool import COST_MS
+from scenarios.pipeline.stream import scan_times
+from scenarios.score.metrics import json_safe
+from scenarios.study import gnss_findings, matcher_findings, report
+from scenarios.study.findings import CITATION, FINDINGS
+from scenarios.study.plan import MATCHERS, SCENARIO, StudyPlan, burst_starts, chain_pieces, study_scenario
+from scenarios.study.tasks import GnssSample, run_task
+from scenarios.study.verdicts import RULES, headline, verdict
+
+Progress = Callable[[int, int, str], None]
+"""progress(jobs done, jobs in all, what finished)."""
+
+
+@dataclass
+class Samples:
+    """What the jobs measured, for the plots: the receiver's fixes, the burst registrations, the world's structures."""
+
+    gnss: GnssSample
+    rows: list[dict]
+    structures: list[dict]
+
+
+def default_out_dir() -> Path:
+    """runs/study-<UTC time>/"""
+    return Path("runs") / f"study-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
+
+
+def run_study(
+    out_dir: str | os.PathLike | None = None,
+    *,
+    seed: int | None = None,
+    stretch_m: tuple[float, float] | None = None,
+    plan: StudyPlan | None = None,
+    progress: Progress | None = None,
+) -> tuple[Path, dict]:
+    """Measure every finding (stretch_m: route stations, default the whole route) and write the study directory
+    (default runs/study-<UTC time>/); returns it and the study.json tree. An out_dir that exists and is not empty is a
+    ValueError, as is a stretch off the route."""
+    plan = plan or StudyPlan()
+    scenario = study_scenario(seed, stretch_m)
+    out = Path(out_dir) if out_dir is not None else default_out_dir()
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"output directory {out} exists and is not empty")
+    stack = assemble(scenario)  # checks the stretch before any work
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        tree = _measure_into(tmp, scenario, stack, plan, progress)
+        os.chmod(tmp, 0o755)  # mkdtemp made it private; a study directory is for everyone to read
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out, tree
+
+
+def _jobs(jobs: list[tuple[str, object]], workers: int, done: list[int], total: int, progress: Progress | None) -> list:
+    """Run the jobs on `workers` processes; their results in job order (a failed job is a RuntimeError naming it)."""
+    results: list = [None] * len(jobs)
+    if workers == 1:  # in this process: no worker to start (a short stretch, a test)
+        for i, job in enumerate(jobs):
+            results[i] = run_task(job)
+            done[0] += 1
+            if progress is not None:
+                progress(done[0], total, job[0])
+        return results
+    for r in run_jobs(run_task, jobs, workers):
+        if not r.ok:
+            raise RuntimeError(f"study: the {jobs[r.index][0]} job failed: {r.error}")
+        results[r.index] = r.value
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], total, jobs[r.index][0])
+    return results
+
+
+def chain_matcher(rates: dict, plan: StudyPlan) -> str:
+    """The fastest matcher (by the bench's nominal cost per scan, scenarios.pipeline.matcher_pool.COST_MS) whose burst
+    success is at least plan.chain_adequate_success; else the most successful."""
+    by_cost = sorted(rates, key=lambda m: COST_MS.get(m, 5.0))
+    adequate = [m for m in by_cost if (rates[m]["success"] or 0.0) >= plan.chain_adequate_success]
+    return adequate[0] if adequate else max(by_cost, key=lambda m: np.nan_to_num(rates[m]["success"]))
+
+
+def _measure_into(tmp: Path, scenario, stack, plan: StudyPlan, progress: Progress | None) -> dict:
+    wall_start = time.perf_counter()
+    lidar = stack.lidar
+    starts = burst_starts(stack.t_start, stack.t_end, lidar.revolution_s, plan)
+    pcl6d = (np.arange(len(starts)) % plan.pcl6d_every) == 0
+    chunks = [c for c in np.array_split(np.arange(len(starts)), 3 * plan.workers) if len(c)]
+    round1 = [("gnss", scenario)] + [("bursts", (scenario, starts[c].tolist(), pcl6d[c].tolist(), plan.burst_scans)) for c in chunks]
+    n_scans = len(scan_times(lidar, stack.t_start, stack.t_end)[:: plan.chain_stride])
+    pieces = chain_pieces(n_scans, plan.chain_segments)
+    total, done = len(round1) + len(pieces) + 1, [0]
+    first = _jobs(round1, plan.workers, done, total, progress)
+    gnss, rows = first[0], [row for chunk in first[1:] for row in chunk]
+    structures = stack.world.params.get("structures", [])
+    measured = gnss_findings.measure(gnss, structures, plan.post_outage_fixes)
+    f = {x.key: x for x in FINDINGS}
+    measured["e"] = matcher_findings.rates(rows, list(MATCHERS))
+    measured["f"] = matcher_findings.success_curve(rows, list(MATCHERS), f["f"].figures["points_band"])
+    measured["g"] = matcher_findings.outliers(rows, list(MATCHERS))
+    mid = chain_matcher(measured["e"], plan)
+    round2 = [("chain", (scenario, mid, a, b, plan.chain_stride)) for a, b in pieces] + [("compass", scenario)]
+    second = _jobs(round2, plan.workers, done, total, progress)
+    compass_t, compass_error = second[-1]
+    measured["h"] = matcher_findings.yaw_drift(mid, second[:-1], compass_t, compass_error)
+    findings = {}
+    for x in FINDINGS:
+        checks = RULES[x.key](measured[x.key], x)
+        findings[x.key] = {
+            "title": x.title,
+            "claim": x.claim,
+            "study": x.figures,
+            "verdict": verdict(checks),
+            "headline": headline(x.key, measured[x.key]),
+            "checks": [c.as_dict() for c in checks],
+            "measured": measured[x.key],
+        }
+    tree = {
+        "provenance": provenance.collect(),
+        "citation": CITATION,
+        "scenario": {"name": SCENARIO, "seed": scenario.seed, "hash": scenario.hash, "t_start": stack.t_start, "t_end": stack.t_end},
+        "plan": {**plan.as_dict(), "bursts": len(starts), "chain_scans": n_scans},
+        "findings": findings,
+    }
+    tree["run"] = {"measure_wall_s": time.perf_counter() - wall_start, "workers": plan.workers}
+    tree = json_safe(tree)
+    report.write(tmp, tree, Samples(gnss, rows, structures))
+    (tmp / "study.json").write_text(json.dumps(tree, indent=2) + "\n")
+    return tree

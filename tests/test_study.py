@@ -1,0 +1,185 @@
+"""`riverbench study`: the command's directory on a few seconds of the route (files, study.json keys, every finding with
+checks and a verdict), the verdict rules on hand-made numbers, nothing written when interrupted or on bad input (exit 2);
+slow: the real study over the whole route gives every finding a number and a verdict."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from typer.testing import CliRunner
+
+from scenarios.cli import app
+from scenarios.study import study as study_module
+from scenarios.study import verdicts
+from scenarios.study.findings import FINDINGS, by_key
+from scenarios.study.matcher_findings import compose, success_curve
+from scenarios.study.plan import StudyPlan, burst_starts, chain_pieces, parse_stretch
+from scenarios.study.verdicts import Check, verdict
+
+runner = CliRunner()
+KEYS = [f.key for f in FINDINGS]
+TINY = "1700:1706"
+"""Three seconds under the Harvard Bridge: a blackout, points in the study's band, a few bursts."""
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("study") / "tiny"
+    result = runner.invoke(app, ["study", "--out", str(out), "--stretch", TINY, "--workers", "1", "--quiet"])
+    assert result.exit_code == 0, result.output
+    return out, json.loads((out / "study.json").read_text())
+
+
+def test_the_tiny_study_writes_its_directory(tiny):
+    out, tree = tiny
+    assert {p.name for p in out.iterdir()} == {"report.md", "report.html", "study.json", "plots"}
+    assert all(p.suffix == ".png" and p.read_bytes()[:4] == b"\x89PNG" for p in (out / "plots").iterdir())
+    assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]  # no temporary left beside it
+    html = (out / "report.html").read_text()
+    assert "data:image/png;base64," in html and 'src="plots/' not in html  # self-contained
+    md = (out / "report.md").read_text()
+    for f in FINDINGS:
+        assert f"{f.key}. {f.title}" in md
+
+
+def test_study_json_has_every_finding_with_checks_and_a_verdict(tiny):
+    _, tree = tiny
+    assert {"provenance", "citation", "scenario", "plan", "findings", "run"} <= set(tree)
+    assert tree["scenario"]["name"] == "charles_river" and list(tree["findings"]) == KEYS
+    for key, f in tree["findings"].items():
+        assert f["verdict"] in verdicts.VERDICTS
+        assert f["study"] == json.loads(json.dumps(by_key()[key].figures))  # the study's figures, from the one table
+        assert {"title", "claim", "headline", "checks", "measured"} <= set(f)
+        assert f["verdict"] == verdict([Check(**c) for c in f["checks"]])
+    m = {k: f["measured"] for k, f in tree["findings"].items()}
+    assert m["a"]["structures"]["harvard_bridge"]["passage_s"] > 0  # the stretch is under its deck
+    assert set(m["e"]) == {"pcl6d", "bev3dof", "kiss_icp", "gicp"} and all(v["registrations"] > 0 for v in m["e"].values())
+    assert m["h"]["scans"] == tree["plan"]["chain_scans"] > 20  # every revolution of the stretch, chained
+
+
+def test_the_verdict_rules_on_hand_made_numbers():
+    yes, no, none = (Check("c", "s", "m", v) for v in (True, False, None))
+    assert verdict([yes, yes, none]) == "agrees"
+    assert verdict([no, no]) == "disagrees"
+    assert verdict([yes, no, none]) == "partly"
+    assert verdict([none]) == verdict([]) == "unmeasured"
+    d = by_key()["d"]
+    good = {"fixes": 100, "error": {"p95": 0.8, "median": 0.4}}
+    assert verdict(verdicts.checks_d(good, d)) == "agrees"
+    assert verdict(verdicts.checks_d({"fixes": 100, "error": {"p95": 1.5, "median": 0.6}}, d)) == "partly"
+    assert verdict(verdicts.checks_d({"fixes": 100, "error": {"p95": 3.0, "median": 1.2}}, d)) == "disagrees"
+    assert verdict(verdicts.checks_d({"fixes": 0, "error": {"p95": math.nan, "median": math.nan}}, d)) == "unmeasured"
+    h = by_key()["h"]
+    node = {"matcher": "kiss_icp", "distance_m": 5000.0, "compass_p95_deg": 2.0}
+    assert verdict(verdicts.checks_h({**node, "drift_end_deg": -20.0}, h)) == "agrees"
+    assert verdict(verdicts.checks_h({**node, "drift_end_deg": 5.0}, h)) == "partly"  # beyond the compass, below the study's order
+    assert verdict(verdicts.checks_h({**node, "drift_end_deg": 1.0}, h)) == "disagrees"
+    e = by_key()["e"]
+    rates = {
+        "pcl6d": {"hz": 5.0, "spearman_seconds_points": 0.6, "error_m_median": 0.02, "unresolved": 0.05},
+        "bev3dof": {"hz": 50.0, "error_m_median": 0.05, "unresolved": 0.20},
+    }
+    assert verdict(verdicts.checks_e(rates, e)) == "agrees"
+    assert verdict(verdicts.checks_e({**rates, "pcl6d": {**rates["pcl6d"], "hz": 12.0}}, e)) == "partly"
+
+
+def test_the_success_curve_counts_per_bin_and_band():
+    rows = [{"matcher": "m", "points": p, "ok": ok} for p, ok in [(500, False), (1500, False), (6500, True), (6900, True), (30000, True)]]
+    curve = success_curve(rows, ["m"], (6000, 27000))
+    s = curve["matchers"]["m"]
+    assert curve["bin_edges"][:3] == [0, 1000, 2000] and sum(s["count"]) == 5
+    assert s["count"][6] == 2 and s["success"][6] == 1.0 and s["success"][0] == 0.0
+    assert (s["band_count"], s["band_success"], s["below_count"], s["below_success"]) == (2, 1.0, 2, 0.0)
+
+
+def test_plan_helpers():
+    assert parse_stretch("10:20.5") == (10.0, 20.5)
+    for bad in ("abc", "20:10", "1:2:3", "-5:3"):
+        with pytest.raises(ValueError, match="--stretch"):
+            parse_stretch(bad)
+    assert chain_pieces(11, 2) == [(0, 5), (5, 10)]  # consecutive pieces share their boundary scan
+    assert list(burst_starts(0.0, 25.0, 0.1, StudyPlan(burst_spacing_s=10.0, burst_scans=3))) == [0.0, 10.0, 20.0]
+    with pytest.raises(ValueError, match="study plan"):
+        StudyPlan(burst_scans=1)
+
+
+def test_pieces_compose_into_one_chain():
+    import numpy as np
+
+    from scenarios.score.record import MatcherTrack
+    from scenarios.study.tasks import ChainPiece
+
+    def pose(x, yaw):
+        T = np.eye(4)
+        T[:2, :2] = [[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]]
+        T[0, 3] = x
+        return T
+
+    def piece(t, truth, chained):
+        n = len(t)
+        track = MatcherTrack(np.ones(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, int), np.zeros(n), np.array(chained))
+        return ChainPiece(np.array(t), np.array(truth), track)
+
+    # truth turns 0.1 rad per step; each piece's odometry starts at the truth and over-turns by 0.01 rad per step
+    truth = [pose(i, 0.1 * i) for i in range(5)]
+    a = piece([0, 1, 2], truth[:3], [pose(i, 0.11 * i) for i in range(3)])
+    b = piece([2, 3, 4], truth[2:], [truth[2] @ pose(0, 0.11 * k) for k in range(3)])
+    t, _, chained, ok = compose([a, b])
+    assert list(t) == [0, 1, 2, 3, 4] and ok.all()
+    yaw = np.arctan2(chained[:, 1, 0], chained[:, 0, 0])
+    np.testing.assert_allclose(yaw, 0.11 * np.arange(5), atol=1e-12)  # the drift carries across the boundary
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--stretch", "abc"], "--stretch"),
+        (["--stretch", "0:999999"], "stretch"),
+        (["--seed", "-1"], "seed"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["study", "--out", str(out), "--workers", "1", "--quiet", *args])
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in result.output
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_a_non_empty_out_dir_is_refused(tmp_path):
+    (tmp_path / "keep.txt").write_text("x")
+    result = runner.invoke(app, ["study", "--out", str(tmp_path), "--stretch", TINY, "--workers", "1", "--quiet"])
+    assert result.exit_code == 2 and "not empty" in result.output
+    assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
+
+
+def test_an_interrupted_study_leaves_nothing(tmp_path, monkeypatch):
+    calls, original = [], study_module.run_task
+
+    def interrupted(job):
+        calls.append(job[0])
+        if len(calls) == 1:  # Ctrl-C as the first job starts
+            raise KeyboardInterrupt
+        return original(job)
+
+    monkeypatch.setattr(study_module, "run_task", interrupted)
+    result = runner.invoke(app, ["study", "--out", str(tmp_path / "out"), "--stretch", TINY, "--workers", "1", "--quiet"])
+    assert result.exit_code == 130 and "nothing written" in result.output
+    assert not list(tmp_path.iterdir())  # neither the directory nor its temporary
+
+
+@pytest.mark.slow
+def test_the_real_study_gives_every_finding_a_number_and_a_verdict(tmp_path):
+    out, tree = study_module.run_study(tmp_path / "study")
+    assert (out / "report.html").exists()
+    for key, f in tree["findings"].items():
+        assert f["verdict"] in ("agrees", "partly", "disagrees"), (key, f["verdict"], f["headline"])
+        assert any(c["holds"] is not None for c in f["checks"]), key
+    m = {k: f["measured"] for k, f in tree["findings"].items()}
+    assert len(m["a"]["structures"]) >= 5  # every bridge and the lock on the route
+    assert m["d"]["fixes"] > 100 and m["d"]["error"]["p95"] is not None
+    assert m["e"]["pcl6d"]["hz"] is not None and m["e"]["bev3dof"]["hz"] is not None
+    assert m["h"]["drift_end_deg"] is not None and m["h"]["scans"] == tree["plan"]["chain_scans"]

@@ -73,7 +73,7 @@ class CompassGyroCheck:
             self._recent.popleft()
         while self._pending and self._pending[0][0] < t - b.average_s:
             self._add(self._pending.popleft(), 1.0)
-        trusted = self._agrees(t, arw)
+        trusted = self._agrees(arw)
         if trusted:
             self._pending.append(sample)
             self._anchor = offset
@@ -88,7 +88,7 @@ class CompassGyroCheck:
         if sign > 0:
             self._fit.append(sample)
 
-    def _agrees(self, t_now: float, arw: float) -> bool:
+    def _agrees(self, arw: float) -> bool:
         b = self.budget
         n, st, so, spsi, stt, sto, soo, spp = self._sums
         if n < b.min_headings:
@@ -113,7 +113,7 @@ class CompassGyroCheck:
             + b.bias_walk**2 * tau**3 / 3.0  # its bias wandering off the fitted slope
         )
         self.disagreement, self.limit = float(d), b.z * math.sqrt(var)
-        return abs(d) <= self.limit
+        return bool(abs(d) <= self.limit)
 
 
 __all__ = ["CompassGyroBudget", "CompassGyroCheck"]

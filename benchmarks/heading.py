@@ -2,7 +2,7 @@
 compass too, and two dead-reckoners started on the true pose (the matcher's odometry alone, and with the gyro); prints
 the heading error (p95, max) of the two ekfs per GPS window (blackout, nlos, reacquisition, open: outside every window),
 each estimator's added error through every blackout, and the yaw drift (final and worst) of the matcher's chained
-odometry, the odometry-only ekf and the gyro-aided one.
+odometry, the odometry-only ekf and the gyro-aided one (its gyro-bias prior the part's datasheet's).
 
     .venv/bin/python benchmarks/heading.py [--world charles_river] [--start-m 1620 --end-m 1800] [--seed 0]
         [--preset mti630] [--chase] [--out DIR]
@@ -21,6 +21,7 @@ import numpy as np
 import scenarios
 from scenarios.export.frames import open_stream
 from scenarios.spec.library import validate
+from sim.imu import PRESETS
 
 ALL = ["gnss", "odometry", "imu", "compass"]
 ESTIMATORS = {
@@ -76,6 +77,8 @@ def main() -> None:
             spec["sensors"] = sensors
         if eid.startswith("dr_"):
             spec["params"] = {"initial_pose": start, "initial_sigma": [0.01, 0.01]}
+        if eid == "dr_gyro":  # the gyro's bias as the part's datasheet knows it, so the gyro, not the odometry, holds the yaw
+            spec["params"]["inertial"] = {"gyro_bias_sigma_dps": bias_sigma_dps(args.preset)}
         estimators.append(spec)
     scenario = validate(base | {"imu": {"preset": args.preset}, "matchers": [{"id": "gicp", "kind": "gicp"}], "estimators": estimators})
     out = args.out or Path(tempfile.mkdtemp(prefix="heading-")) / "run"
@@ -111,6 +114,12 @@ def main() -> None:
         _, err, signed = errors[eid]
         print(f"  {eid:12s} {signed[-1]:+7.2f} / {err.max():6.2f}")
     print(f"run directory: {run}")
+
+
+def bias_sigma_dps(preset: str) -> float:
+    """1 sigma of a part's gyro bias at power-on, deg/s: its turn-on bias and its in-run stability (sim.imu.PRESETS)."""
+    gyro = PRESETS[preset]["gyro"]
+    return math.hypot(gyro["turn_on_bias_dps"], gyro["bias_instability_dph"] / 3600.0)
 
 
 def time_zero(tum: Path) -> float:

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from fusion.bootstrap import Alignment, Bootstrap
+from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
 from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix
 from fusion.monitors import FixContext, Monitor
 from fusion.observation import FixObservation, screen
@@ -65,6 +66,19 @@ class Estimator:
         self._gyro_noise = 0.0  # its white noise density, rad/s/sqrt(Hz)
         self._imu_last: float | None = None
         self._heading_last = -math.inf
+        self._gyro_yaw = 0.0  # the gyro's integral (raw rates less the Earth's), rad, not wrapped: what the compass check compares
+        ip = self.inertial
+        checks = self.uses_imu and "compass" in params.sensors and ip.compass_gyro_check
+        walk = math.radians(ip.gyro_bias_walk_dph) / 3600.0 / 60.0
+        budget = CompassGyroBudget(
+            ip.compass_iron_share,
+            walk,
+            ip.compass_check_fit_s,
+            ip.compass_check_average_s,
+            ip.compass_check_min_headings,
+            math.sqrt(self._compass_gate),
+        )
+        self._compass_check = CompassGyroCheck(budget) if checks else None
 
     # ---- public API -------------------------------------------------------------------------
     @property
@@ -223,6 +237,7 @@ class Estimator:
         noise = self.inertial.gyro_noise_dps
         self._gyro_noise = math.radians(noise) if noise is not None else float(samples.gyro_noise)
         self._imu_last = float(stamps[-1])
+        self._gyro_yaw += float(rates @ (stamps - starts))
         first = self._gyro_rate is None
         self._gyro_rate = float(rates[-1])
         if first:
@@ -235,13 +250,14 @@ class Estimator:
 
     def add_heading(self, sample: HeadingSample) -> bool:
         """Use a compass heading; False when it is not used (before initialisation, between used ones, or refused as
-        disturbed: its field differs from the undisturbed one or its innovation lies beyond the gate)."""
+        disturbed: its field differs from the undisturbed one, its innovation lies beyond the gate, or, with an IMU, its
+        change disagrees with the gyro's: fusion.compass_check)."""
         if self._refuse_stamp(getattr(sample, "stamp", math.nan), "heading"):
             return False
         stamp = float(sample.stamp)
         self._advance(stamp)
         p = self.inertial
-        if not self.initialized or not sample.finite or stamp - self._heading_last < p.compass_interval_s:
+        if not self.initialized or not sample.finite:
             return False
         if abs(sample.field_norm_ut / p.field_ut - 1.0) > p.field_tolerance or abs(sample.dip_deg - p.dip_deg) > p.dip_tolerance_deg:
             return False
@@ -252,6 +268,12 @@ class Estimator:
         yaw, var = heading
         innovation = wrap_angle(float(sample.yaw) - yaw)
         if innovation**2 / (var + sigma**2) > self._compass_gate:
+            return False
+        # every heading past the field and innovation checks goes to the gyro comparison, at the gyro's latest time
+        check = self._compass_check
+        if check is not None and self._imu_last is not None and not check.check(self._imu_last, float(sample.yaw), self._gyro_yaw, self._gyro_noise):
+            return False
+        if stamp - self._heading_last < p.compass_interval_s:
             return False
         try:
             self._update_heading(float(sample.yaw), innovation, sigma**2)

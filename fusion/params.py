@@ -195,6 +195,35 @@ class InertialParams(BaseModel):
     compass_gate_prob: float = Field(
         0.999, gt=0.5, lt=1.0, description="chi-square (1 dof) gate on a heading's innovation [0.999: refused beyond 3.3 sigma]"
     )
+    compass_gyro_check: bool = Field(
+        True,
+        description="with an IMU, refuse a compass heading whose change disagrees with the gyro's integrated yaw beyond what "
+        "either can err by (fusion.compass_check): catches the gentle 1-3 deg a steel structure bends the heading by, "
+        "which the innovation gate lets through [True]",
+    )
+    compass_iron_share: float = Field(
+        0.03,
+        ge=0,
+        description="share of the heading turned through that the residual iron error may change the compass heading by, "
+        "1 sigma [0.03: a 0.28 uT residual hard iron is 1.4 % of the 20.6 uT horizontal field, its error changing by at "
+        "most that per radian turned; 0.5 % soft iron adds about as much at twice the heading's frequency]",
+    )
+    compass_check_fit_s: float = Field(
+        60.0,
+        gt=0,
+        description="span of trusted headings the check fits its line compass - gyro to, s [60: 600 headings at 10 Hz fix "
+        "the line to a few hundredths of a degree while the MTi-630's bias wanders by about its 8 deg/h in-run stability "
+        "over its 45 s correlation time, which moves the integral by a tenth of a degree]",
+    )
+    compass_check_average_s: float = Field(
+        3.0,
+        gt=0,
+        description="a heading's offset is averaged over this long before it is compared, s [3.0: 30 outputs at 10 Hz take "
+        "an MTi's 0.5 deg white scatter (0.2 deg roll/pitch error x tan of Boston's 66 deg dip) to 0.09 deg, at 1.5 s of delay]",
+    )
+    compass_check_min_headings: int = Field(
+        100, ge=3, description="the fewest trusted headings the check fits a line to; before, every heading passes [100: 10 s at 10 Hz]"
+    )
     field_ut: float = Field(
         51.32, gt=0, description="the undisturbed field intensity the boat's configuration knows, microtesla [IGRF-14 at Boston, 2025.0]"
     )

@@ -18,110 +18,103 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from riverbench.rng import stream
 from riverbench.samples import ImuSamples
 from sim.kinematics import body_motion, earth_rate_enu, normal_gravity
-from sim.sensor_noise import NoiseSpec, TriadNoise, gauss_markov_sigma
+from sim.sensor_noise import FLICKER_FLOOR, NoiseSpec, TriadNoise, gauss_markov_sigma
 
 STANDARD_GRAVITY = 9.80665
 """m/s^2 per g, the unit datasheets give accelerometer figures in (CGPM 1901)."""
 MAX_RATE_HZ = 400.0
 
 
-class GyroSpec(BaseModel):
-    """Gyroscope triad error figures, in a datasheet's units."""
+class _TriadSpec(BaseModel):
+    """What a gyroscope and an accelerometer triad share: the bias's correlation time and the errors drawn once per run."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    noise_density_dps: float = Field(..., ge=0, description="rate noise density, deg/s/sqrt(Hz) (angle random walk x 60 in deg/sqrt(h))")
-    bias_instability_dph: float = Field(..., ge=0, description="in-run bias stability (Allan floor / 0.664), deg/h; 0 when the datasheet gives none")
     bias_correlation_s: float = Field(
-        100.0, gt=0, description="correlation time of the Gauss-Markov bias that realises the bias instability, s (a model choice, see the preset)"
+        100.0, gt=0, description="correlation time of the Gauss-Markov bias that realises the bias instability, s (a model choice, see PRESETS)"
     )
-    bias_random_walk_dphrh: float = Field(0.0, ge=0, description="rate random walk, deg/h/sqrt(h) (a model choice, see the preset)")
-    turn_on_bias_dps: float = Field(0.0, ge=0, description="1-sigma bias drawn once per run (zero-rate offset), deg/s")
     scale_factor: float = Field(0.0, ge=0, description="1-sigma scale-factor error drawn once per run per axis, fraction")
     misalignment_deg: float = Field(0.0, ge=0, description="1-sigma axis misalignment (cross-axis sensitivity) drawn once per run per pair, deg")
+
+
+class GyroSpec(_TriadSpec):
+    """Gyroscope triad error figures, in a datasheet's units."""
+
+    noise_density_dps: float = Field(..., ge=0, description="rate noise density, deg/s/sqrt(Hz) (angle random walk x 60 in deg/sqrt(h))")
+    bias_instability_dph: float = Field(..., ge=0, description="in-run bias stability (Allan floor / 0.664), deg/h; 0 when the datasheet gives none")
+    bias_random_walk_dphrh: float = Field(0.0, ge=0, description="rate random walk, deg/h/sqrt(h) (a model choice, see PRESETS)")
+    turn_on_bias_dps: float = Field(0.0, ge=0, description="1-sigma bias drawn once per run (zero-rate offset), deg/s")
     range_dps: float = Field(..., gt=0, description="full-scale range, deg/s: outputs saturate there")
     resolution_dps: float = Field(0.0, ge=0, description="output quantisation step (LSB), deg/s; 0 for floating-point output")
 
 
-class AccelSpec(BaseModel):
+class AccelSpec(_TriadSpec):
     """Accelerometer triad error figures, in a datasheet's units."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
     noise_density_ug: float = Field(..., ge=0, description="noise density, micro-g/sqrt(Hz) (velocity random walk)")
     bias_instability_ug: float = Field(..., ge=0, description="in-run bias stability (Allan floor / 0.664), micro-g; 0 when the datasheet gives none")
-    bias_correlation_s: float = Field(
-        100.0, gt=0, description="correlation time of the Gauss-Markov bias that realises the bias instability, s (a model choice, see the preset)"
-    )
-    bias_random_walk_ugrs: float = Field(0.0, ge=0, description="acceleration random walk, micro-g/sqrt(s) (a model choice, see the preset)")
+    bias_random_walk_ugrs: float = Field(0.0, ge=0, description="acceleration random walk, micro-g/sqrt(s) (a model choice, see PRESETS)")
     turn_on_bias_mg: float = Field(0.0, ge=0, description="1-sigma bias drawn once per run (zero-g offset), milli-g")
-    scale_factor: float = Field(0.0, ge=0, description="1-sigma scale-factor error drawn once per run per axis, fraction")
-    misalignment_deg: float = Field(0.0, ge=0, description="1-sigma axis misalignment (cross-axis sensitivity) drawn once per run per pair, deg")
     range_g: float = Field(..., gt=0, description="full-scale range, g: outputs saturate there")
     resolution_ug: float = Field(0.0, ge=0, description="output quantisation step (LSB), micro-g; 0 for floating-point output")
 
 
-# The Gauss-Markov correlation time and the random walk are not on datasheets. Each preset places
-# them by one rule, so that the Allan deviation has a flat floor at the datasheet's bias instability:
-# with r = (N / (0.664 B))^2 the time where white noise alone falls to the floor, T = 2 r and
-# K = sqrt(0.15) (0.664 B)^2 / N (the random walk reaches the floor at 20 r). The floor then lies
-# between about r and 10 r: ~20-300 s for the MTi-630 gyro, ~3,000-30,000 s for the BMI088's.
-PRESETS: dict[str, dict] = {
-    # Bosch Sensortec BMI088 data sheet, BST-BMI088-DS001 (rev. 1.3, May 2018; 1.4, Sep 2018), Table 1/2:
-    # gyro output noise 0.014 deg/s/sqrt(Hz), bias stability 2 deg/h, zero-rate offset +-1 deg/s,
-    # sensitivity tolerance +-1 %, cross-axis sensitivity +-1 %, range set to +-500 deg/s (65.536 LSB/(deg/s),
-    # 16 bit); accelerometer noise density 175 ug/sqrt(Hz), zero-g offset +-20 mg, range set to +-6 g
-    # (5460 LSB/g, 16 bit). No accelerometer bias stability is given.
-    "bmi088": {
-        "gyro": {
-            "noise_density_dps": 0.014,
-            "bias_instability_dph": 2.0,
-            "bias_correlation_s": 2900.0,
-            "bias_random_walk_dphrh": 0.81,
-            "turn_on_bias_dps": 1.0,
-            "scale_factor": 0.01,
-            "misalignment_deg": 0.57,
-            "range_dps": 500.0,
-            "resolution_dps": 1.0 / 65.536,
-        },
-        "accel": {
-            "noise_density_ug": 175.0,
-            "bias_instability_ug": 0.0,
-            "turn_on_bias_mg": 20.0,
-            "scale_factor": 0.01,
-            "misalignment_deg": 0.57,
-            "range_g": 6.0,
-            "resolution_ug": 1e6 / 5460.0,
-        },
-    },
-    # Xsens (Movella) MTi 600-series Datasheet (MTi-630 AHRS, document MTi600series.D, 2021), sensor specifications:
-    # gyro in-run bias stability 8 deg/h, noise density 0.007 deg/s/sqrt(Hz), range +-2000 deg/s, non-linearity
-    # 0.1 % FS; accelerometer in-run bias stability 10 ug, noise density 60 ug/sqrt(Hz), range +-10 g. The unit
-    # outputs calibrated floating-point data (no quantisation; turn-on bias, scale factor and misalignment are
-    # calibrated out by Xsens to the residuals given here: 0.1 % scale, 0.05 deg alignment).
-    "mti630": {
-        "gyro": {
-            "noise_density_dps": 0.007,
-            "bias_instability_dph": 8.0,
-            "bias_correlation_s": 45.0,
-            "bias_random_walk_dphrh": 26.0,
-            "turn_on_bias_dps": 0.0,
-            "scale_factor": 0.001,
-            "misalignment_deg": 0.05,
-            "range_dps": 2000.0,
-        },
-        "accel": {
-            "noise_density_ug": 60.0,
-            "bias_instability_ug": 10.0,
-            "bias_correlation_s": 160.0,
-            "bias_random_walk_ugrs": 0.28,
-            "turn_on_bias_mg": 0.0,
-            "scale_factor": 0.001,
-            "misalignment_deg": 0.05,
-            "range_g": 10.0,
-        },
-    },
-}
+PARTS = ("bmi088", "mti630")
+"""The presets, in the columns of DATASHEETS."""
+
+DATASHEETS: tuple[tuple[str, float, float, str], ...] = (
+    # (sensor.field, BMI088, MTi-630, source). BMI088: Bosch Sensortec BMI088 data sheet BST-BMI088-DS001 (rev. 1.3, May
+    # 2018; 1.4, Sep 2018), Table 1 (accelerometer) and 2 (gyroscope), typical values, which Bosch states as 1 sigma.
+    # MTi-630: Xsens (Movella) MTi 600-series datasheet MT1603P (2020.B), sensor specifications; the unit outputs
+    # calibrated floating-point data, its turn-on bias, scale and alignment calibrated out to the residuals given.
+    ("gyro.noise_density_dps", 0.014, 0.007, "output noise density, deg/s/sqrt(Hz)"),
+    ("gyro.bias_instability_dph", 2.0, 8.0, "in-run bias stability, deg/h"),
+    ("gyro.turn_on_bias_dps", 1.0, 0.0, "BMI088 zero-rate offset +-1 deg/s typ.; MTi: calibrated"),
+    ("gyro.scale_factor", 0.01, 0.001, "BMI088 sensitivity tolerance +-1 %; MTi 0.1 % residual (its non-linearity 0.1 % FS)"),
+    ("gyro.misalignment_deg", 0.57, 0.05, "BMI088 cross-axis sensitivity +-1 % = asin(0.01); MTi 0.05 deg residual alignment"),
+    ("gyro.range_dps", 500.0, 2000.0, "BMI088 range register set to +-500 deg/s; MTi +-2000 deg/s standard full range"),
+    ("gyro.resolution_dps", 1.0 / 65.536, 0.0, "BMI088 65.536 LSB/(deg/s) at +-500 deg/s (16 bit); MTi floating point"),
+    ("accel.noise_density_ug", 175.0, 60.0, "noise density, micro-g/sqrt(Hz)"),
+    ("accel.bias_instability_ug", 0.0, 10.0, "in-run bias stability, micro-g (the BMI088's data sheet gives none)"),
+    ("accel.turn_on_bias_mg", 20.0, 0.0, "BMI088 zero-g offset +-20 mg typ.; MTi: calibrated"),
+    ("accel.scale_factor", 0.01, 0.001, "BMI088 sensitivity tolerance +-1 %; MTi 0.1 % residual"),
+    ("accel.misalignment_deg", 0.57, 0.05, "BMI088 cross-axis sensitivity +-1 %; MTi 0.05 deg residual alignment"),
+    ("accel.range_g", 6.0, 10.0, "BMI088 range register set to +-6 g; MTi +-10 g standard full range"),
+    ("accel.resolution_ug", 1e6 / 5460.0, 0.0, "BMI088 5460 LSB/g at +-6 g (16 bit); MTi floating point"),
+)
+"""One table of every preset's datasheet figures: a row per field, a column per part (PARTS), and the row's source."""
+
+
+def _noise_placement(density: float, instability: float) -> tuple[float, float]:
+    """(bias correlation time s, random-walk density) that give the Allan deviation a flat floor at the datasheet's bias
+    instability, in the units of `density` (per sqrt(Hz)) and `instability`, with the walk per sqrt(s).
+
+    Neither is on a datasheet; every preset places them by one rule: with r = (N / (0.664 B))^2 the time where white
+    noise alone falls to the floor, T = 2 r and K = sqrt(0.15) (0.664 B)^2 / N (the random walk reaches the floor at
+    20 r). The floor then lies between about r and 10 r: ~20-300 s for the MTi-630 gyro, ~1,500-15,000 s for the BMI088's."""
+    floor = FLICKER_FLOOR * instability
+    return 2.0 * (density / floor) ** 2, math.sqrt(0.15) * floor**2 / density
+
+
+def _presets() -> dict[str, dict[str, dict[str, float]]]:
+    """DATASHEETS as {part: {"gyro": {...}, "accel": {...}}}, with each bias's correlation time and random walk placed."""
+    out: dict[str, dict[str, dict[str, float]]] = {part: {"gyro": {}, "accel": {}} for part in PARTS}
+    for key, *values, _source in DATASHEETS:
+        sensor, field = key.split(".")
+        for part, value in zip(PARTS, values):
+            out[part][sensor][field] = value
+    for figures in out.values():
+        g, a = figures["gyro"], figures["accel"]
+        if g["bias_instability_dph"] > 0:  # deg/s/sqrt(Hz) -> deg/h/sqrt(Hz); the walk deg/h/sqrt(s) -> deg/h/sqrt(h)
+            g["bias_correlation_s"], walk = _noise_placement(3600.0 * g["noise_density_dps"], g["bias_instability_dph"])
+            g["bias_random_walk_dphrh"] = 60.0 * walk
+        if a["bias_instability_ug"] > 0:
+            a["bias_correlation_s"], a["bias_random_walk_ugrs"] = _noise_placement(a["noise_density_ug"], a["bias_instability_ug"])
+    return out
+
+
+PRESETS: dict[str, dict[str, dict[str, float]]] = _presets()
+"""{part: {"gyro": GyroSpec fields, "accel": AccelSpec fields}} from DATASHEETS."""
 
 
 class ImuConfig(BaseModel):

@@ -71,15 +71,17 @@ def assert_same(run: RunRecord, again: RunRecord) -> None:
 def test_the_runs_order_of_fixes_and_scans_survives_the_bag(tmp_path, monkeypatch):
     scenario = scenarios.load("open_river", set=["stretch={start_s = 0.0, end_s = 1.5}"])
     run, again = round_trip(scenario, "rosbag2", tmp_path, monkeypatch)
-    assert len(run.scan_t) == 15 and len(run.fixes.t) == 8 and run.fixes.t[3] < run.scan_t[6]  # 3/5 < 6 * 0.1
+    # on the nanosecond grid the 0.6 s fix and the 0.6 s scan share one stamp (3/5 and 6 * 0.1 differed in the last bit)
+    assert len(run.scan_t) == 15 and len(run.fixes.t) == 8 and run.fixes.t[3] == run.scan_t[6] == 0.6
     with AnyReader([tmp_path / "bag"], default_typestore=typestore()) as reader:
         stamps = [t for c, t, _ in reader.messages() if c.topic == "/gps/fix"]
     epoch = ros_ns(scenario.gnss.epoch_utc, 0.0)
-    assert stamps[3] == epoch + 599_999_999 and stamps[2] == epoch + 400_000_000  # kept before the scan at 600000000 ns
+    assert stamps[3] == epoch + 600_000_000 and stamps[2] == epoch + 400_000_000
     assert_same(run, again)
-    # gps_only at the 0.6 s scan already holds the 0.6 s fix (not the 0.4 s one it held at 0.5 s), in the replay as in the run
+    # the scan comes first at a shared stamp, in the run as in the replay: gps_only at the 0.6 s scan still holds the
+    # 0.4 s fix, and takes the 0.6 s one at the 0.7 s scan
     gps_only = run.estimates["gps_only"]
-    assert np.linalg.norm(gps_only[6][:3, 3] - gps_only[5][:3, 3]) > 0.1
+    assert np.array_equal(gps_only[6], gps_only[5]) and np.linalg.norm(gps_only[7][:3, 3] - gps_only[6][:3, 3]) > 0.01
 
 
 @pytest.mark.slow

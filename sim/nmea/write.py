@@ -153,6 +153,11 @@ def gga(fix: Fix) -> str:
     return sentence(body)
 
 
+RMC_MODE = {0: "N", 1: "A", 2: "D", 4: "R", 5: "F", 6: "E"}
+"""GGA quality -> RMC mode indicator (NMEA 0183 2.3+: Autonomous, Differential, RTK fixed (R), Float RTK, Estimated
+(dead reckoning), Not valid), as u-blox and Septentrio receivers write it; sim.nmea.epochs reads it back."""
+
+
 def rmc(fix: Fix, gps_talker: bool = False) -> str:
     """Recommended minimum: time, status, position, speed over ground (knots), course, date, mode. `gps_talker`: always
     the NMEA 2.3 $GPRMC, as a receiver set to the GP main talker writes it for a device that reads only that (a Velodyne)."""
@@ -162,7 +167,7 @@ def rmc(fix: Fix, gps_talker: bool = False) -> str:
     lon, ew = _angle(fix.lon if valid else math.nan, 3, "EW")
     speed = _num(fix.speed_mps / KNOT_MPS if valid else math.nan, ".3f")
     course = _num(fix.course_deg if valid else math.nan, ".2f")
-    mode = {0: "N", 1: "A", 6: "E"}.get(fix.quality, "A")
+    mode = RMC_MODE.get(fix.quality, "A")
     body = f"{TALKER}RMC,{_time(when)},{'A' if valid else 'V'},{lat},{ns},{lon},{ew},{speed},{course},{when:%d%m%y},,,{mode}"
     if _multi(fix) and not gps_talker:
         body = f"{MULTI_TALKER}{body[2:]},V"

@@ -43,6 +43,7 @@ QUANTITIES: tuple[Quantity, ...] = (
             "estimators.*.windows.*.seconds",
             "estimators.*.windows.*.recover_s",
             "vessel.time_below_threshold_s",
+            "compass.disturbed_s",
         ),
     ),
     Quantity("ms per registered scan", 3, ("matchers.*.ms.*",)),
@@ -88,6 +89,9 @@ QUANTITIES: tuple[Quantity, ...] = (
             "matchers.*.gated",
             "matchers.*.degenerate",
             "run.mover_points.scans_with",
+            "compass.disturbed",
+            "estimators.*.compass.used",
+            "estimators.*.compass.disturbed_used",
         ),
     ),
     Quantity(

@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from matcher.result import MatchResult
 from riverbench import unixtime
 from scenarios.pipeline import files
-from scenarios.score import metrics
+from scenarios.score import metrics, units
 from scenarios.score import windows as win
 from scenarios.score.record import Column, FixTable, MatcherTrack, Recorder, RunRecord
 
@@ -590,6 +590,20 @@ def test_window_metrics_per_kind_worst_over_windows():
     assert b["recovered"] == 0.5
     assert out["nlos"]["count"] == 0 and math.isnan(out["nlos"]["recovered"]) and math.isnan(out["nlos"]["max_error"])
     assert out["injected"]["count"] == 1
+    assert "yaw" not in b  # no heading known (a replay's reference without one)
+
+
+def test_window_heading_error_is_taken_over_the_scans_inside_that_kinds_windows():
+    t = np.arange(100) / 10.0
+    yaw_error = np.where((t >= 2.0) & (t < 4.0), 10.0 * t, 0.5)  # 20-39 deg inside the blackout, 0.5 deg elsewhere
+    windows = [win.Window("blackout", 2.0, 4.0), win.Window("nlos", 6.0, 6.25)]
+    out = metrics.window_metrics(windows, t, np.zeros(len(t)), yaw_error)
+    inside = 10.0 * t[(t >= 2.0) & (t < 4.0)]
+    assert out["blackout"]["yaw"] == {"p95": pytest.approx(np.percentile(inside, 95)), "max": pytest.approx(39.0)}
+    assert out["nlos"]["yaw"] == {"p95": 0.5, "max": 0.5}
+    assert all(math.isnan(v) for v in out["reacquisition"]["yaw"].values())  # no window of that kind: NaN
+    assert units.quantity_of("estimators.ekf.windows.blackout.yaw.p95").unit == "deg"
+    assert metrics.family_of("estimators.ekf.windows.nlos.yaw.max").name == "heading error"
 
 
 # ---------------------------------------------------------------- monitors and GPS

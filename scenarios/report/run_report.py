@@ -244,6 +244,8 @@ WINDOW_COLUMNS = [
     Column("reacquisition max (m)", get("windows.reacquisition.max_error"), metres),
     Column("NLOS max (m)", get("windows.nlos.max_error"), metres),
     Column("injected max (m)", get("windows.injected.max_error"), metres),
+    Column("blackout yaw p95 (°)", get("windows.blackout.yaw.p95"), degrees),
+    Column("NLOS yaw p95 (°)", get("windows.nlos.yaw.p95"), degrees),
 ]
 MONITOR_COLUMNS = [
     Column("monitor", get("monitor_kind"), lambda v: NULL if v is None else str(v), None, text=True),
@@ -252,7 +254,10 @@ MONITOR_COLUMNS = [
     Column("false alarms", get("monitor.added_5m.false_alarm_rate"), share, ranked_if=_recall_defined),
 ]
 DEGRADATION_COLUMNS = [*WINDOW_COLUMNS, *MONITOR_COLUMNS]
-WINDOW_NOTE = "Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit)."
+WINDOW_NOTE = (
+    "Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit); yaw: the heading "
+    "error's p95 (deg) over the scans inside the windows of that kind."
+)
 MONITOR_NOTE = (
     "Monitor: its verdicts on the measured fixes; faulty fixes: how many had more than 5 m added by the environment; "
     "recall: the share of those it flagged (– when there were none); false alarms: the share of the other measured "

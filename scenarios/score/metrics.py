@@ -195,12 +195,13 @@ def align_se2(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
 def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window]) -> dict:
     est, truth = rec.estimates[eid], rec.truth
     error = horizontal_error(est, truth)
+    yaw_error = yaw_error_deg(est, truth)
     out = {
         "available": float(np.isfinite(error).mean()) if len(error) else math.nan,
         "ape": stats(error),
         **{f"rpe_{d:g}m": rpe(est, truth, d) for d in RPE_DISTANCES_M},
-        "yaw": stats(yaw_error_deg(est, truth)),
-        "windows": window_metrics(windows, rec.scan_t, error),
+        "yaw": stats(yaw_error),
+        "windows": window_metrics(windows, rec.scan_t, error, yaw_error),
         "monitor": monitor_metrics(rec.fixes, eid),
     }
     failed = [f for f in rec.failures if f["component"] == "estimator" and f["id"] == eid]
@@ -210,10 +211,11 @@ def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window]) -> di
     return out
 
 
-def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray) -> dict:
+def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray, yaw_error: np.ndarray | None = None) -> dict:
     """Per kind: count, total seconds, and the worst max error, exit error, added error and recovery
     time over its windows; `recovered` is the share of windows after which the error came back
-    (recover_s is the worst over those that did)."""
+    (recover_s is the worst over those that did); with `yaw_error` (deg), `yaw`: the heading error's p95 and max over
+    the scans inside its windows, where a filter that trusted odometry or a disturbed compass shows its heading drift."""
     out = {}
     for kind in win.KINDS:
         mine = [w for w in windows if w.kind == kind]
@@ -229,7 +231,21 @@ def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray) 
             "recover_s": worst("recover_s"),
             "recovered": float(np.mean(recovered)) if recovered else math.nan,
         }
+        if yaw_error is not None:
+            out[kind]["yaw"] = heading_inside(mine, t, yaw_error)
     return out
+
+
+def heading_inside(windows: list[win.Window], t: np.ndarray, yaw_error: np.ndarray) -> dict:
+    """p95 and max of the heading error (deg) over the scans at times `t` inside any of `windows` (NaN: none inside)."""
+    inside = np.zeros(len(t), dtype=bool)
+    for w in windows:
+        inside |= (t >= w.start) & (t < w.end)
+    heading = yaw_error[inside]
+    heading = heading[np.isfinite(heading)]
+    if not len(heading):
+        return {"p95": math.nan, "max": math.nan}
+    return {"p95": float(np.percentile(heading, 95)), "max": float(heading.max())}
 
 
 def _nanmax(values: list[float]) -> float:

@@ -3,7 +3,7 @@
 The receiver alone (no LiDAR) at its defaults, driven along the library's GNSS stretches: the charles_river bridges
 (bu_truss_bridge, harvard_beam_bridge, longfellow_arch_bridge), canal_multipath's canyon, and a sample of the whole
 charles_river route (150 m every 1000 m). Per case and constellation set: medians of the satellites above the mask
-with an ephemeris ("visible") and used in the fix, the outages (stretches without a measured fix, GGA quality not 1:
+with an ephemeris ("visible") and used in the fix, the outages (stretches without a measured fix, GGA quality none of 1, 2, 4, 5:
 the receiver dead-reckons (6) for up to 10 s, then reports none (0); their count, median and longest, s), the
 longest stretch of quality 0 (s), the share of fixes using an NLOS satellite (truth), and the horizontal error of those fixes (p50, p95, m).
 
@@ -17,6 +17,7 @@ import argparse
 import numpy as np
 
 import worlds
+from fusion.observation import POSITION_QUALITIES
 from sim import GnssReceiver, Trajectory
 
 SETS = {"GPS": ["GPS"], "GPS+GLO+GAL+BDS": ["GPS", "GLONASS", "GALILEO", "BEIDOU"]}
@@ -40,7 +41,7 @@ def drive(world, stretches, constellations, seed: int, rate_hz: float) -> dict[s
             rows["visible"].append(len(fix.sats))
             rows["used"].append(fix.num_sats)
             rows["quality"].append(fix.quality)
-            rows["nlos"].append(fix.quality == 1 and any(s.used and tr.nlos for s, tr in zip(fix.sats, fix.truth.sats, strict=True)))
+            rows["nlos"].append(fix.quality in POSITION_QUALITIES and any(s.used and tr.nlos for s, tr in zip(fix.sats, fix.truth.sats, strict=True)))
             rows["herr"].append(float(np.hypot(*fix.truth.error[:2])))
             rows["piece"].append(k)
     return {key: np.array(value) for key, value in rows.items()}
@@ -68,7 +69,7 @@ def main() -> None:
         world = worlds.load(world_name)
         for label, constellations in SETS.items():
             r = drive(world, stretches, constellations, args.seed, args.rate)
-            outages = runs(r["quality"] != 1, r["piece"], args.rate)
+            outages = runs(~np.isin(r["quality"], sorted(POSITION_QUALITIES)), r["piece"], args.rate)
             invalid = runs(r["quality"] == 0, r["piece"], args.rate)
             nlos_err = r["herr"][r["nlos"]]
             p50, p95 = np.percentile(nlos_err, [50, 95]) if len(nlos_err) else (np.nan, np.nan)

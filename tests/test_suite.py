@@ -28,6 +28,7 @@ CI_SEEDS = 3
 
 
 @pytest.mark.slow  # ~15 min: the library's fast variants on 3 seeds, judged metric by metric against the committed baseline
+@pytest.mark.early
 def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
     junit = tmp_path / "suite.xml"
     result = runner.invoke(

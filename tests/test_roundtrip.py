@@ -19,6 +19,14 @@ from scenarios.replay import replay
 from scenarios.score.record import RunRecord
 
 OPEN_LOOP = [name for name in scenarios.available() if scenarios.load(name).control.mode == "open_loop"]
+NOT_YET_EXACT = {
+    "steel_bridge_compass": "measured: the compass- and IMU-fed ekf's replayed estimates leave the run's from scan 232 on, by up "
+    "to 1.6 cm (every verdict, the other estimators and gicp's odometry are exact; dam_lock_inertial, fed the same sensors, is "
+    "exact). Suspected, not yet verified: the compass-gyro check (fusion/compass_check.py, merged after the compass replay was "
+    "made exact) judges a heading against the gyro integral at the estimator's latest IMU time, which depends on how the replay "
+    "interleaves IMU batches and headings; it is exercised only where steel bends the compass, as here"
+}
+"""Open-loop scenarios whose round trip is not yet exact, with what was measured: a strict xfail each."""
 ESTIMATE_M = 1e-6
 
 
@@ -85,7 +93,9 @@ def test_the_runs_order_of_fixes_and_scans_survives_the_bag(tmp_path, monkeypatc
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", OPEN_LOOP)
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=NOT_YET_EXACT[n])) if n in NOT_YET_EXACT else n for n in OPEN_LOOP]
+)
 def test_a_library_run_exported_and_replayed_gives_every_verdict_and_estimate_again(name, tmp_path, monkeypatch):
     fmt = ("rosbag2", "mcap")[OPEN_LOOP.index(name) % 2]
     run, again = round_trip(scenarios.load(name).fast_variant(), fmt, tmp_path, monkeypatch)

@@ -105,27 +105,45 @@ class FacadeIndex:
         return int(np.floor(xy[0] / self.cell_m)), int(np.floor(xy[1] / self.cell_m))
 
     def _build_cells(self) -> dict[tuple[int, int], np.ndarray]:
-        cells: dict[tuple[int, int], list[int]] = {}
+        """Cell -> faces (ascending) whose footprint segment passes within radius_m + half a cell diagonal of its centre.
+
+        All (face, cell) candidates of every face's bounding box at once: each face's box is enumerated row-major
+        (x index major) from a flat counter, as a per-face meshgrid would.
+        """
         reach = self.radius_m + self.cell_m * np.sqrt(0.5)
         xy = self.vertices[:, :, :2]
-        for face, tri in enumerate(xy):
-            # Footprint segment of a vertical triangle: its extreme points along the face direction.
-            along = np.array([-self.normals[face, 1], self.normals[face, 0]])
-            norm = np.linalg.norm(along)
-            along = along / norm if norm > 0 else np.array([1.0, 0.0])
-            proj = tri @ along
-            a, b = tri[np.argmin(proj)], tri[np.argmax(proj)]
-            lo = np.floor((np.minimum(a, b) - reach) / self.cell_m).astype(int)
-            hi = np.floor((np.maximum(a, b) + reach) / self.cell_m).astype(int)
-            ix, iy = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1), indexing="ij")
-            centres = (np.stack([ix.ravel(), iy.ravel()], axis=1) + 0.5) * self.cell_m
-            ab = b - a
-            span = float(ab @ ab)
-            t = np.clip(((centres - a) @ ab) / span, 0.0, 1.0) if span > 0 else np.zeros(len(centres))
-            dist = np.linalg.norm(centres - (a + t[:, None] * ab), axis=1)
-            for cx, cy in zip(ix.ravel()[dist <= reach], iy.ravel()[dist <= reach]):
-                cells.setdefault((int(cx), int(cy)), []).append(face)
-        return {key: np.asarray(faces, dtype=np.intp) for key, faces in cells.items()}
+        # Footprint segment of a vertical triangle: its extreme points along the face direction.
+        along = np.stack([-self.normals[:, 1], self.normals[:, 0]], axis=1)
+        norm = np.linalg.norm(along, axis=1)
+        flat = norm == 0
+        along = np.where(flat[:, None], np.array([1.0, 0.0]), along / np.where(flat, 1.0, norm)[:, None])
+        proj = np.einsum("fvk,fk->fv", xy, along)
+        faces = np.arange(len(xy))
+        a, b = xy[faces, np.argmin(proj, axis=1)], xy[faces, np.argmax(proj, axis=1)]
+        lo = np.floor((np.minimum(a, b) - reach) / self.cell_m).astype(int)
+        hi = np.floor((np.maximum(a, b) + reach) / self.cell_m).astype(int)
+        size = hi - lo + 1
+        count = size[:, 0] * size[:, 1]
+        face = np.repeat(faces, count)
+        local = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+        ix = lo[face, 0] + local // size[face, 1]
+        iy = lo[face, 1] + local % size[face, 1]
+        centres = (np.stack([ix, iy], axis=1) + 0.5) * self.cell_m
+        ab = b - a
+        span = np.einsum("fk,fk->f", ab, ab)
+        rel = centres - a[face]
+        along_ab = np.einsum("ck,ck->c", rel, ab[face])
+        positive = span[face] > 0
+        t = np.where(positive, np.clip(along_ab / np.where(positive, span[face], 1.0), 0.0, 1.0), 0.0)
+        dist = np.linalg.norm(centres - (a[face] + t[:, None] * ab[face]), axis=1)
+        near = dist <= reach
+        if not near.any():
+            return {}
+        face, ix, iy = face[near], ix[near], iy[near]
+        order = np.lexsort((face, iy, ix))
+        face, ix, iy = face[order], ix[order], iy[order]
+        starts = np.flatnonzero(np.r_[True, (ix[1:] != ix[:-1]) | (iy[1:] != iy[:-1])])
+        return {(int(ix[s]), int(iy[s])): group for s, group in zip(starts, np.split(face.astype(np.intp), starts[1:]))}
 
     def near(self, xy: np.ndarray) -> np.ndarray:
         """Indices of facades that may lie within radius_m of the horizontal position xy."""

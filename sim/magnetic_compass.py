@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from riverbench.rng import stream
 from riverbench.samples import HeadingSample
+from riverbench.unixtime import on_ns_grid
 from sim.magnetism import MOMENT_PER_TONNE, SteelField, earth_field_enu, steel_field
 
 # IGRF-14 (Alken et al., Earth Planets Space, 2025) at the worlds' origin 42.3539 N, 71.1106 W, 0 m, epoch 2025.0
@@ -91,9 +92,9 @@ class MagneticCompass:
         return 1.0 / self.config.rate_hz
 
     def times(self, t0: float, t1: float) -> np.ndarray:
-        """Output times k / rate_hz in (t0, t1]."""
+        """Output times k / rate_hz in (t0, t1], on the nanosecond grid as a bag stamps them (and the IMU's samples are)."""
         rate = self.config.rate_hz
-        return np.arange(math.floor(t0 * rate + 1e-9) + 1, math.floor(t1 * rate + 1e-9) + 1) / rate
+        return on_ns_grid(np.arange(math.floor(t0 * rate + 1e-9) + 1, math.floor(t1 * rate + 1e-9) + 1) / rate)
 
     def field_enu(self, points: np.ndarray) -> np.ndarray:
         """The true field (N, 3) at ENU points, microtesla: the Earth's plus the steel's."""

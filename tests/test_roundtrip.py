@@ -19,13 +19,7 @@ from scenarios.replay import replay
 from scenarios.score.record import RunRecord
 
 OPEN_LOOP = [name for name in scenarios.available() if scenarios.load(name).control.mode == "open_loop"]
-NOT_YET_EXACT = {
-    "steel_bridge_compass": "measured: the compass- and IMU-fed ekf's replayed estimates leave the run's from scan 232 on, by up "
-    "to 1.6 cm (every verdict, the other estimators and gicp's odometry are exact; dam_lock_inertial, fed the same sensors, is "
-    "exact). Suspected, not yet verified: the compass-gyro check (fusion/compass_check.py, merged after the compass replay was "
-    "made exact) judges a heading against the gyro integral at the estimator's latest IMU time, which depends on how the replay "
-    "interleaves IMU batches and headings; it is exercised only where steel bends the compass, as here"
-}
+NOT_YET_EXACT: dict[str, str] = {}
 """Open-loop scenarios whose round trip is not yet exact, with what was measured: a strict xfail each."""
 SAME_PATH_AS_ANOTHER = {"bu_truss_bridge", "charles_river", "dam_lock", "longfellow_arch_bridge", "chase_boat"}
 """Scenarios whose bag carries nothing another's does not (the default stack, a charles_river bridge or the dam, one

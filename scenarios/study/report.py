@@ -23,7 +23,8 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
         Text(
             f"scenario {sc['name']} (seed {sc['seed']}, hash {sc['hash']}), {sc['t_start']:.0f}-{sc['t_end']:.0f} s of the route; "
             f"{plan['bursts']} bursts of {plan['burst_scans']} revolutions every {plan['burst_spacing_s']:g} s (pcl6d on 1 in "
-            f"{plan['pcl6d_every']}), {plan['chain_scans']} revolutions chained; measured in {run.get('measure_wall_s', 0.0):.0f} s "
+            f"{plan['pcl6d_every']}), {plan['chain_scans']} revolutions chained (1 in {plan['chain_stride']}); "
+            f"measured in {run.get('measure_wall_s', 0.0):.0f} s "
             f"on {run.get('workers', '?')} processes; riverbench {prov.get('riverbench')} {prov.get('git_commit', '')[:10]}",
             "meta",
         ),

@@ -30,7 +30,8 @@ class StudyPlan:
     chain_stride: int = 2
     """The chained odometry registers every this-many-th revolution: 2 chains at 5 Hz, within the 1-8 Hz the field
     study's Method 1 ran at, for half the cost of every revolution (the chain is most of the study's time: kiss_icp
-    and the LiDAR took 83 ms a revolution, 85% of a 200 m study); 1 chains every revolution."""
+    and the LiDAR took 83 ms a revolution, 85% of a 200 m study); 1 chains every revolution. It changes finding h's
+    figure: over 1650-1850 m kiss_icp's chain ends 0.84 deg off at 2 against 1.34 deg at 1 (seed 0)."""
     chain_segments: int = 4
     """The chained odometry is computed in this many consecutive pieces (in parallel), composed end to end."""
     chain_adequate_success: float = 0.95

@@ -29,7 +29,7 @@ from scenarios.score.metrics import json_safe
 from scenarios.study import gnss_findings, matcher_findings, report
 from scenarios.study.findings import CITATION, FINDINGS
 from scenarios.study.plan import MATCHERS, SCENARIO, StudyPlan, burst_starts, chain_pieces, study_scenario
-from scenarios.study.tasks import GnssSample, run_task
+from scenarios.study.tasks import GnssSample, Timed, run_task
 from scenarios.study.verdicts import RULES, headline, verdict
 
 Progress = Callable[[int, int, str], None]
@@ -80,23 +80,26 @@ def run_study(
     return out, tree
 
 
-def _jobs(jobs: list[tuple[str, object]], workers: int, done: list[int], total: int, progress: Progress | None) -> list:
-    """Run the jobs on `workers` processes; their results in job order (a failed job is a RuntimeError naming it)."""
+def _jobs(jobs: list[tuple[str, object]], workers: int, done: list[int], total: int, progress: Progress | None, costs: list[dict]) -> list:
+    """Run the jobs on `workers` processes; their results in job order (a failed job is a RuntimeError naming it).
+    Each job's kind, wall and CPU seconds are appended to `costs` as it finishes."""
     results: list = [None] * len(jobs)
+
+    def finished(index: int, timed: Timed) -> None:
+        results[index] = timed.value
+        costs.append({"kind": jobs[index][0], "wall_s": timed.wall_s, "cpu_s": timed.cpu_s})
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], total, jobs[index][0])
+
     if workers == 1:  # in this process: no worker to start (a short stretch, a test)
         for i, job in enumerate(jobs):
-            results[i] = run_task(job)
-            done[0] += 1
-            if progress is not None:
-                progress(done[0], total, job[0])
+            finished(i, run_task(job))
         return results
     for r in run_jobs(run_task, jobs, workers):
         if not r.ok:
             raise RuntimeError(f"study: the {jobs[r.index][0]} job failed: {r.error}")
-        results[r.index] = r.value
-        done[0] += 1
-        if progress is not None:
-            progress(done[0], total, jobs[r.index][0])
+        finished(r.index, r.value)
     return results
 
 
@@ -118,7 +121,8 @@ def _measure_into(tmp: Path, scenario, stack, plan: StudyPlan, progress: Progres
     n_scans = len(scan_times(lidar, stack.t_start, stack.t_end)[:: plan.chain_stride])
     pieces = chain_pieces(n_scans, plan.chain_segments)
     total, done = len(round1) + len(pieces) + 1, [0]
-    first = _jobs(round1, plan.workers, done, total, progress)
+    costs: list[dict] = []
+    first = _jobs(round1, plan.workers, done, total, progress, costs)
     gnss, rows = first[0], [row for chunk in first[1:] for row in chunk]
     structures = stack.world.params.get("structures", [])
     measured = gnss_findings.measure(gnss, structures, plan.post_outage_fixes)
@@ -128,7 +132,8 @@ def _measure_into(tmp: Path, scenario, stack, plan: StudyPlan, progress: Progres
     measured["g"] = matcher_findings.outliers(rows, list(MATCHERS))
     mid = chain_matcher(measured["e"], plan)
     round2 = [("chain", (scenario, mid, a, b, plan.chain_stride)) for a, b in pieces] + [("compass", scenario)]
-    second = _jobs(round2, plan.workers, done, total, progress)
+    round1_wall_s = time.perf_counter() - wall_start
+    second = _jobs(round2, plan.workers, done, total, progress, costs)
     compass_t, compass_error = second[-1]
     measured["h"] = matcher_findings.yaw_drift(mid, second[:-1], compass_t, compass_error)
     findings = {}
@@ -150,7 +155,7 @@ def _measure_into(tmp: Path, scenario, stack, plan: StudyPlan, progress: Progres
         "plan": {**plan.as_dict(), "bursts": len(starts), "chain_scans": n_scans},
         "findings": findings,
     }
-    tree["run"] = {"measure_wall_s": time.perf_counter() - wall_start, "workers": plan.workers}
+    tree["run"] = {"measure_wall_s": time.perf_counter() - wall_start, "round1_wall_s": round1_wall_s, "workers": plan.workers, "jobs": costs}
     tree = json_safe(tree)
     report.write(tmp, tree, Samples(gnss, rows, structures))
     (tmp / "study.json").write_text(json.dumps(tree, indent=2) + "\n")

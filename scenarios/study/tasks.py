@@ -141,8 +141,19 @@ def compass(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     return ts, wrap_angle(measured - truth)
 
 
-def run_task(job: tuple[str, object]):
+@dataclass
+class Timed:
+    """A job's result and what it cost in its worker: wall and CPU seconds (the study's schedule is judged on them)."""
+
+    value: Any
+    wall_s: float
+    cpu_s: float
+
+
+def run_task(job: tuple[str, object]) -> Timed:
     """Dispatch one (kind, argument) job in a worker: kind is gnss, bursts, chain or compass."""
     kind, arg = job
     handlers: dict[str, Callable[[Any], object]] = {"gnss": gnss, "bursts": bursts, "chain": chain, "compass": compass}
-    return handlers[kind](arg)
+    wall, cpu = time.perf_counter(), time.process_time()
+    value = handlers[kind](arg)
+    return Timed(value, time.perf_counter() - wall, time.process_time() - cpu)

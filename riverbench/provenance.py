@@ -21,6 +21,7 @@ def collect() -> dict:
         "python": platform.python_version(),
         "platform": f"{platform.system()} {platform.release()} {platform.machine()}",
         "cpus": _cpus(),
+        "cpu": cpu_model(),
         "packages": {name: v for name in KEY_PACKAGES if (v := _version(name))},
     }
 
@@ -42,6 +43,29 @@ def _version(distribution: str) -> str | None:
         return metadata.version(distribution)
     except metadata.PackageNotFoundError:
         return None
+
+
+def cpu_model() -> str:
+    """The processor's model name ('' when the platform does not say): gicp's numbers, and the estimators' that fuse
+    them, are not bit-identical across CPU models (measured: 87 of 338 quickstart metrics differ, GPS identical), so a
+    baseline records where it was measured."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def other_cpu(measured: dict) -> str | None:
+    """'was measured on <model>, this is <model>: ...' when the provenance `measured` names another CPU model than
+    this machine's, else None (also when either is unknown)."""
+    there, here = measured.get("cpu"), cpu_model()
+    if not there or not here or there == here:
+        return None
+    return f"was measured on {there}, this is {here}: matcher-fed metrics may differ without a code change"
 
 
 def _cpus() -> int:

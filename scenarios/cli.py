@@ -286,6 +286,9 @@ def suite(
                 mark = f"[bold red]FAIL[/] ({failed} of {len(case.expectations)} expectations)" if failed else "[green]pass[/]"
             console.print(f"{mark} {escape(case.label)} ({case.wall_s:.0f} s){': ' + escape(case.error) if case.error else ''}", highlight=False)
 
+    note = provenance.other_cpu(stored.provenance) if stored is not None else None
+    if note:
+        console.print(f"note: the baseline {note}", highlight=False, markup=False)
     if fast:
         full = sorted({spec.name for spec in loaded.values() if spec.fast is None})
         if full:  # as the library's baseline was measured; `run --fast` and `sweep --fast` refuse such a scenario

@@ -208,3 +208,16 @@ def test_the_committed_baseline_stays_valid_for_runs_that_publish_rounded_metric
                 runs.metrics[metric] = [None if v is None else round(v, quantity.decimals) for v in values]
     counts = compare(base, now).counts()
     assert counts["unchanged"] == counts["identical"] > 1000 and not counts["regressed"] + counts["improved"] + counts["changed"]
+
+
+def test_a_baseline_from_another_cpu_model_is_named_as_such():
+    from riverbench import provenance
+
+    here = provenance.collect()["cpu"]
+    assert isinstance(here, str)
+    assert provenance.other_cpu({"cpu": here}) is None
+    assert provenance.other_cpu({}) is None  # baselines before the CPU model was recorded
+    note = provenance.other_cpu({"cpu": "Some Other CPU @ 1.0GHz"})
+    assert (note is not None) == bool(here)
+    if note:
+        assert "Some Other CPU @ 1.0GHz" in note and here in note

@@ -27,11 +27,12 @@ class StudyPlan:
     """Revolutions per burst: the first is a fresh matcher's reference, each later one a match (the last with a motion prior)."""
     pcl6d_every: int = 2
     """pcl6d (the slowest matcher) registers every this-many-th burst only."""
-    chain_stride: int = 2
-    """The chained odometry registers every this-many-th revolution: 2 chains at 5 Hz, within the 1-8 Hz the field
-    study's Method 1 ran at, for half the cost of every revolution (the chain is most of the study's time: kiss_icp
-    and the LiDAR took 83 ms a revolution, 85% of a 200 m study); 1 chains every revolution. It changes finding h's
-    figure: over 1650-1850 m kiss_icp's chain ends 0.84 deg off at 2 against 1.34 deg at 1 (seed 0)."""
+    chain_stride: int = 3
+    """The chained odometry registers every this-many-th revolution: 3 chains at 3.3 Hz, within the 1-8 Hz the field
+    study's Method 1 ran at. The chain is nearly all of the study's time (whole route, 1 in 2: 1,856 of 2,000 CPU
+    seconds, kiss_icp and the LiDAR about 147 ms a chained revolution), so 1 in 2 took 16 min on 2 cores and 1 in 3 fits
+    the 15. It changes finding h's figure little: over 1650-1850 m kiss_icp's chain ends 0.85 deg off at 3, 0.84 at 2
+    and 1.34 at 1 (every revolution; seed 0)."""
     chain_segments: int = 4
     """The chained odometry is computed in this many consecutive pieces (in parallel), composed end to end."""
     chain_adequate_success: float = 0.95

@@ -183,3 +183,27 @@ def test_the_real_study_gives_every_finding_a_number_and_a_verdict(tmp_path):
     assert m["d"]["fixes"] > 100 and m["d"]["error"]["p95"] is not None
     assert m["e"]["pcl6d"]["hz"] is not None and m["e"]["bev3dof"]["hz"] is not None
     assert m["h"]["drift_end_deg"] is not None and m["h"]["scans"] == tree["plan"]["chain_scans"]
+
+
+def test_the_chains_heading_is_integrated_as_a_planar_filter_does_so_its_tilt_stays_out():
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from scenarios.study.matcher_findings import planar_heading, tilt_deg
+
+    def poses(yaw_deg, pitch_deg):
+        out = np.tile(np.eye(4), (len(yaw_deg), 1, 1))
+        out[:, :3, :3] = Rotation.from_euler("ZY", np.c_[yaw_deg, pitch_deg], degrees=True).as_matrix()
+        return out
+
+    k = np.arange(121.0)
+    level = poses(np.full_like(k, 30.0), np.zeros_like(k))
+    pitching = poses(np.full_like(k, 30.0), k)  # a chain whose pitch drifts to 120 deg, its heading held
+    assert np.allclose(planar_heading(pitching), np.radians(30.0))
+    assert np.allclose(tilt_deg(pitching, level), k)
+    turning = poses(3.0 * k, np.zeros_like(k))  # a level chain turning through 360 deg: its heading, unwrapped
+    assert np.allclose(planar_heading(turning), np.radians(3.0 * k))
+    gap = turning.copy()
+    gap[10:12] = np.nan  # failed scans: the step is taken across them
+    h = planar_heading(gap)
+    assert np.isnan(h[10:12]).all() and np.allclose(np.delete(h, [10, 11]), np.delete(np.radians(3.0 * k), [10, 11]))

@@ -92,7 +92,7 @@ class Bootstrap:
                 # the fit places the latest fix's odometry pose; a latest fix without odometry has none to place
                 odo = self._odo_at_last
                 return self._procrustes(g, q, sigma2, odo) if odo is not None else None
-        return self._course(self._samples, sigma2)
+        return self._course(gps, sigma2)
 
     def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float, odo: np.ndarray) -> Alignment:
         """Alignment placing `odo`, the odometry pose at the latest fix, from the fit of the odometry antenna track q onto the fixes g."""
@@ -108,13 +108,9 @@ class Bootstrap:
         cov = np.diag([sigma2, sigma2, yaw_var])
         return Alignment(self._samples[-1].stamp, world, cov)
 
-    def _course(self, samples: list[_Sample], sigma2: float) -> Alignment | None:
+    def _course(self, gps: np.ndarray, sigma2: float) -> Alignment:
         """Heading from the GPS course over the most recent travel long enough for the heading
-        threshold (a shorter chord follows a turning boat better). None when the odometry on the
-        same chain travelled a distance the chord cannot be (beyond 3 sigma of the two fixes' errors
-        and 10 % of the travel): the fixes are not following the boat, as when a receiver's own
-        filter walks back from a multipath error at tens of m/s after a lock or a bridge."""
-        gps = np.array([f.xy for f in samples])
+        threshold (a shorter chord follows a turning boat better)."""
         need = 2.0 * sigma2 / self.max_yaw_var
         start = 0
         for k in range(len(gps) - 2, -1, -1):
@@ -127,11 +123,6 @@ class Bootstrap:
             u = d / max(float(np.linalg.norm(d)), 1e-9)
             across = (gps - gps[0]) @ np.array([-u[1], u[0]])
             sigma2 = max(sigma2, float(np.var(across)))
-        first, last = samples[start], samples[-1]
-        if first.antenna_odo is not None and last.antenna_odo is not None and first.segment == last.segment:
-            travel = float(np.linalg.norm(last.antenna_odo - first.antenna_odo))
-            if abs(float(np.linalg.norm(d)) - travel) > 3.0 * np.sqrt(2.0 * sigma2) + 0.1 * travel:
-                return None
         yaw = float(wrap_angle(np.arctan2(d[1], d[0])))
         xy = gps[-1] - rot2(yaw) @ self.lever
         yaw_var = 2.0 * sigma2 / max(float(d @ d), 1e-9)

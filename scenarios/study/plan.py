@@ -1,6 +1,6 @@
 """What the study measures and where: the charles_river library scenario with every matcher, and how its route is sampled
 so the whole report fits a few minutes on 2 cores (GNSS over every epoch, matchers on bursts of consecutive revolutions
-spaced along the route, one matcher chained over every second revolution for the yaw drift)."""
+spaced along the route, one matcher chained over every third revolution for the heading drift)."""
 
 from __future__ import annotations
 

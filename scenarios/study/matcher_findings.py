@@ -120,7 +120,7 @@ def planar_heading(pose: np.ndarray) -> np.ndarray:
     if not len(idx):
         return out
     steps = np.linalg.solve(pose[idx[:-1]], pose[idx[1:]])
-    out[idx] = metrics.yaw_of(pose[idx[:1]])[0] + np.concatenate([[0.0], np.cumsum(np.arctan2(steps[:, 1, 0], steps[:, 0, 0]))])
+    out[idx] = metrics.yaw_of(pose[idx[:1]])[0] + np.concatenate([[0.0], np.cumsum(metrics.yaw_of(steps))])
     return out
 
 

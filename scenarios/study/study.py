@@ -80,17 +80,16 @@ def run_study(
     return out, tree
 
 
-def _jobs(jobs: list[tuple[str, object]], workers: int, done: list[int], total: int, progress: Progress | None, costs: list[dict]) -> list:
+def _jobs(jobs: list[tuple[str, object]], workers: int, total: int, progress: Progress | None, costs: list[dict]) -> list:
     """Run the jobs on `workers` processes; their results in job order (a failed job is a RuntimeError naming it).
-    Each job's kind, wall and CPU seconds are appended to `costs` as it finishes."""
+    Each job's kind, wall and CPU seconds are appended to `costs` as it finishes (so it counts the jobs done)."""
     results: list = [None] * len(jobs)
 
     def finished(index: int, timed: Timed) -> None:
         results[index] = timed.value
         costs.append({"kind": jobs[index][0], "wall_s": timed.wall_s, "cpu_s": timed.cpu_s})
-        done[0] += 1
         if progress is not None:
-            progress(done[0], total, jobs[index][0])
+            progress(len(costs), total, jobs[index][0])
 
     if workers == 1:  # in this process: no worker to start (a short stretch, a test)
         for i, job in enumerate(jobs):
@@ -120,9 +119,9 @@ def _measure_into(tmp: Path, scenario, stack, plan: StudyPlan, progress: Progres
     round1 = [("gnss", scenario)] + [("bursts", (scenario, starts[c].tolist(), pcl6d[c].tolist(), plan.burst_scans)) for c in chunks]
     n_scans = len(scan_times(lidar, stack.t_start, stack.t_end)[:: plan.chain_stride])
     pieces = chain_pieces(n_scans, plan.chain_segments)
-    total, done = len(round1) + len(pieces) + 1, [0]
+    total = len(round1) + len(pieces) + 1
     costs: list[dict] = []
-    first = _jobs(round1, plan.workers, done, total, progress, costs)
+    first = _jobs(round1, plan.workers, total, progress, costs)
     gnss, rows = first[0], [row for chunk in first[1:] for row in chunk]
     structures = stack.world.params.get("structures", [])
     measured = gnss_findings.measure(gnss, structures, plan.post_outage_fixes)
@@ -133,7 +132,7 @@ def _measure_into(tmp: Path, scenario, stack, plan: StudyPlan, progress: Progres
     mid = chain_matcher(measured["e"], plan)
     round2 = [("chain", (scenario, mid, a, b, plan.chain_stride)) for a, b in pieces] + [("compass", scenario)]
     round1_wall_s = time.perf_counter() - wall_start
-    second = _jobs(round2, plan.workers, done, total, progress, costs)
+    second = _jobs(round2, plan.workers, total, progress, costs)
     compass_t, compass_error = second[-1]
     measured["h"] = matcher_findings.yaw_drift(mid, second[:-1], compass_t, compass_error)
     findings = {}

@@ -272,7 +272,7 @@ def headline(key: str, m: dict) -> str:
     if key == "h":
         return (
             f"{m['matcher']} over {_f(m.get('distance_m', nan), '.0f', ' m')}: yaw off by {_f(m['drift_end_deg'], '.1f', ' deg')} at the end "
-            f"(max {_f(m['drift_max_deg'], '.1f', ' deg')}); its tilt off by {_f(m.get('tilt_end_deg', nan), '.1f', ' deg')} "
-            f"(max {_f(m.get('tilt_max_deg', nan), '.1f', ' deg')}); compass p95 {_f(m['compass_p95_deg'], '.1f', ' deg')}"
+            f"(max {_f(m['drift_max_deg'], '.1f', ' deg')}); its tilt off by {_f(m['tilt_end_deg'], '.1f', ' deg')} "
+            f"(max {_f(m['tilt_max_deg'], '.1f', ' deg')}); compass p95 {_f(m['compass_p95_deg'], '.1f', ' deg')}"
         )
     raise KeyError(key)

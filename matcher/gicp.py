@@ -36,11 +36,12 @@ from matcher.covariance import (
     to_xyzrpy,
 )
 from matcher.deskew import deskew_rounds
-from matcher.motion import deskew
+from matcher.motion import deskew, se3_exp
 from matcher.planarity import planarity
 from matcher.pointplane import PlaneFit, point_to_plane_fit
 from matcher.remap import keep_prior_along
 from matcher.result import MatchResult
+from matcher.scene_grid import carried, downsample
 
 
 class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
@@ -94,16 +95,16 @@ class _NearestPlane:
 class _Prepared:
     """A de-skewed, downsampled scan with covariances and its k-d tree."""
 
-    def __init__(self, cloud: Cloud, twist: np.ndarray | None, p: GicpParams, screen: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
-        self.cloud, self.twist = cloud, twist
+    def __init__(
+        self, cloud: Cloud, twist: np.ndarray | None, grid: np.ndarray, p: GicpParams, screen: Callable[[np.ndarray], np.ndarray] | None = None
+    ) -> None:
+        self.cloud, self.twist, self.grid = cloud, twist, grid
         xyz = deskew(cloud.xyz, cloud.time, twist)
         self.moving = np.empty((0, 3))  # points dropped as moving with the sensor
         if screen is not None:
             drop = screen(xyz)
             self.moving, xyz = xyz[drop], xyz[~drop]
-        self.points, self.tree = small_gicp.preprocess_points(
-            xyz, downsampling_resolution=p.voxel_m, num_neighbors=p.num_neighbors, num_threads=p.num_threads
-        )
+        self.points, self.tree = downsample(xyz, grid, p.voxel_m, p.num_neighbors, p.num_threads)
         self.xyz, self.normals = self.points.points()[:, :3], self.points.normals()[:, :3]
         self.nearest = _NearestPlane(self.tree, len(self.xyz))
         self.normal_weight = np.minimum(planarity(xyz, self.xyz, p.planarity_voxel_m) / p.min_planarity, 1.0)
@@ -124,7 +125,15 @@ class Gicp(DeskewingMatcher[_Prepared]):
         self.p = params
 
     def _prepare(self, cloud: Cloud, twist: np.ndarray | None, screen: Callable[[np.ndarray], np.ndarray] | None = None) -> _Prepared:
-        return _Prepared(cloud, twist, self.p, screen)
+        return _Prepared(cloud, twist, self._grid(cloud, twist), self.p, screen)
+
+    def _grid(self, cloud: Cloud, twist: np.ndarray | None) -> np.ndarray:
+        """The voxel grid of `cloud`: the reference's, carried by the motion `twist` gives over the time between them
+        (matcher.scene_grid); the first scan's is its own frame."""
+        if self._ref is None:
+            return np.eye(4)
+        motion = np.eye(4) if twist is None else se3_exp(twist * (cloud.stamp - self._ref.cloud.stamp))
+        return carried(self._ref.grid, motion, self.p.voxel_m)
 
     def _comoving_screen(self, prior: np.ndarray) -> Callable[[np.ndarray], np.ndarray] | None:
         """The mask of a de-skewed scan's points moving with the sensor, against the current reference, found

@@ -71,6 +71,12 @@ class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
         le=1.0,
         description="a reference point less planar than this (a single scan line) counts in the covariance in proportion (default 0.1)",
     )
+    voxel_grid: Literal["scene", "sensor"] = Field(
+        "scene",
+        description="frame of the downsampling voxel grid: 'scene' carries the reference's grid by the estimated motion "
+        "(matcher.scene_grid); 'sensor' fixes it to each scan's sensor frame, as small_gicp's preprocess_points and PCL's "
+        "VoxelGrid do, and aliases with the motion (default scene)",
+    )
     drop_comoving: bool = Field(True, description="drop returns from objects keeping station with the sensor, e.g. a chase boat (default true)")
 
 
@@ -130,7 +136,7 @@ class Gicp(DeskewingMatcher[_Prepared]):
     def _grid(self, cloud: Cloud, twist: np.ndarray | None) -> np.ndarray:
         """The voxel grid of `cloud`: the reference's, carried by the motion `twist` gives over the time between them
         (matcher.scene_grid); the first scan's is its own frame."""
-        if self._ref is None:
+        if self._ref is None or self.p.voxel_grid == "sensor":
             return np.eye(4)
         motion = np.eye(4) if twist is None else se3_exp(twist * (cloud.stamp - self._ref.cloud.stamp))
         return carried(self._ref.grid, motion, self.p.voxel_m)

@@ -71,11 +71,13 @@ class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
         le=1.0,
         description="a reference point less planar than this (a single scan line) counts in the covariance in proportion (default 0.1)",
     )
-    voxel_grid: Literal["scene", "sensor"] = Field(
-        "scene",
-        description="frame of the downsampling voxel grid: 'scene' carries the reference's grid by the estimated motion "
-        "(matcher.scene_grid); 'sensor' fixes it to each scan's sensor frame, as small_gicp's preprocess_points and PCL's "
-        "VoxelGrid do, and aliases with the motion (default scene)",
+    voxel_grid: Literal["sensor", "scene"] = Field(
+        "sensor",
+        description="frame of the downsampling voxel grid: 'sensor' fixes it to each scan's sensor frame, as small_gicp's "
+        "preprocess_points and PCL's VoxelGrid do, so it aliases with the motion (+39 mm a scan along the route under "
+        "charles_river's lock road); 'scene' carries the reference's grid by the estimated motion (matcher.scene_grid: "
+        "-0.2 mm there). Default sensor: as the default, 'scene' moved the library's metrics and crashed "
+        "steer_canal_multipath's closed loop on one seed through a bad start-up (docs/models.md)",
     )
     drop_comoving: bool = Field(True, description="drop returns from objects keeping station with the sensor, e.g. a chase boat (default true)")
 
@@ -110,7 +112,12 @@ class _Prepared:
         if screen is not None:
             drop = screen(xyz)
             self.moving, xyz = xyz[drop], xyz[~drop]
-        self.points, self.tree = downsample(xyz, grid, p.voxel_m, p.num_neighbors, p.num_threads)
+        if p.voxel_grid == "scene":
+            self.points, self.tree = downsample(xyz, grid, p.voxel_m, p.num_neighbors, p.num_threads)
+        else:
+            self.points, self.tree = small_gicp.preprocess_points(
+                xyz, downsampling_resolution=p.voxel_m, num_neighbors=p.num_neighbors, num_threads=p.num_threads
+            )
         self.xyz, self.normals = self.points.points()[:, :3], self.points.normals()[:, :3]
         self.nearest = _NearestPlane(self.tree, len(self.xyz))
         self.normal_weight = np.minimum(planarity(xyz, self.xyz, p.planarity_voxel_m) / p.min_planarity, 1.0)

@@ -104,7 +104,7 @@ class _Prepared:
     """A de-skewed, downsampled scan with covariances and its k-d tree."""
 
     def __init__(
-        self, cloud: Cloud, twist: np.ndarray | None, grid: np.ndarray, p: GicpParams, screen: Callable[[np.ndarray], np.ndarray] | None = None
+        self, cloud: Cloud, twist: np.ndarray | None, grid: np.ndarray | None, p: GicpParams, screen: Callable[[np.ndarray], np.ndarray] | None = None
     ) -> None:
         self.cloud, self.twist, self.grid = cloud, twist, grid
         xyz = deskew(cloud.xyz, cloud.time, twist)
@@ -112,12 +112,12 @@ class _Prepared:
         if screen is not None:
             drop = screen(xyz)
             self.moving, xyz = xyz[drop], xyz[~drop]
-        if p.voxel_grid == "scene":
-            self.points, self.tree = downsample(xyz, grid, p.voxel_m, p.num_neighbors, p.num_threads)
-        else:
+        if grid is None:  # the sensor's own grid
             self.points, self.tree = small_gicp.preprocess_points(
                 xyz, downsampling_resolution=p.voxel_m, num_neighbors=p.num_neighbors, num_threads=p.num_threads
             )
+        else:
+            self.points, self.tree = downsample(xyz, grid, p.voxel_m, p.num_neighbors, p.num_threads)
         self.xyz, self.normals = self.points.points()[:, :3], self.points.normals()[:, :3]
         self.nearest = _NearestPlane(self.tree, len(self.xyz))
         self.normal_weight = np.minimum(planarity(xyz, self.xyz, p.planarity_voxel_m) / p.min_planarity, 1.0)
@@ -140,10 +140,12 @@ class Gicp(DeskewingMatcher[_Prepared]):
     def _prepare(self, cloud: Cloud, twist: np.ndarray | None, screen: Callable[[np.ndarray], np.ndarray] | None = None) -> _Prepared:
         return _Prepared(cloud, twist, self._grid(cloud, twist), self.p, screen)
 
-    def _grid(self, cloud: Cloud, twist: np.ndarray | None) -> np.ndarray:
-        """The voxel grid of `cloud`: the reference's, carried by the motion `twist` gives over the time between them
-        (matcher.scene_grid); the first scan's is its own frame."""
-        if self._ref is None or self.p.voxel_grid == "sensor":
+    def _grid(self, cloud: Cloud, twist: np.ndarray | None) -> np.ndarray | None:
+        """The voxel grid of `cloud`: None for the sensor's own (voxel_grid = "sensor"); else the reference's, carried
+        by the motion `twist` gives over the time between them (matcher.scene_grid), the first scan's its own frame."""
+        if self.p.voxel_grid == "sensor":
+            return None
+        if self._ref is None or self._ref.grid is None:
             return np.eye(4)
         motion = np.eye(4) if twist is None else se3_exp(twist * (cloud.stamp - self._ref.cloud.stamp))
         return carried(self._ref.grid, motion, self.p.voxel_m)

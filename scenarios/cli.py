@@ -185,7 +185,7 @@ def run(
     import scenarios
     from scenarios.pipeline.progress import RunProgress
     from scenarios.pipeline.runner import RunFailed, RunInterrupted, default_out_dir
-    from scenarios.report.summary import run_table
+    from scenarios.report.summary import failed_components, run_table
     from scenarios.spec.library import load_fast
 
     with stoppable("run interrupted; nothing written", (RunInterrupted,)):
@@ -205,7 +205,9 @@ def run(
     if not quiet:
         console.print(run_table(result))
     target = result.report if result.report.exists() else result.out_dir
-    console.print(f"{'all expectations pass' if result.passed else '[bold red]expectations failed[/]'}: {target}")
+    failed = failed_components(result.metrics)
+    note = f" ([bold red]failed during the run:[/] {escape('; '.join(failed))})" if failed else ""
+    console.print(f"{'all expectations pass' if result.passed else '[bold red]expectations failed[/]'}: {target}{note}")
     raise typer.Exit(0 if result.passed else 1)
 
 

@@ -22,6 +22,7 @@ import matcher
 from scenarios.batch.suite import run_suite
 from scenarios.cli import app
 from scenarios.pipeline.runner import run
+from scenarios.report.summary import failed_components
 from scenarios.spec.library import validate
 from scenarios.spec.scenario import default_lists
 from scenarios.spec.schema import scenario_json_schema
@@ -185,6 +186,8 @@ def test_plugins_that_fail_inside_a_run_are_recorded_from_that_input_on_and_the_
         assert node["failed"] and node["failed_at"] == pytest.approx(stamp), cid
     assert not metrics["matchers"]["icp2d"]["failed"] and metrics["matchers"]["icp2d"]["success"] > 0.9
     assert not metrics["estimators"]["complementary"]["failed"]
+    said = failed_components(metrics)  # what `riverbench run` prints on its last line, pass or fail
+    assert sorted(said) == sorted(f"{cid} at {stamp:.1f} s: {reason}" for cid, (stamp, reason) in expected.items())
     with open(result.out_dir / "scans.csv") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 20 and not any(int(r["raises.ok"]) or int(r["returns_none.ok"]) for r in rows)

@@ -11,6 +11,12 @@ def _num(value, fmt: str = ".2f") -> str:
     return "–" if value is None else format(value, fmt)
 
 
+def failed_components(metrics: dict) -> list[str]:
+    """The components that failed during a run, as 'id at t s: reason' (metrics.json's run.failures); a run survives
+    them, and its expectations may not mention them (a closed loop's autopilot then holds its course blind)."""
+    return [f"{f.get('id')} at {f.get('stamp', float('nan')):.1f} s: {f.get('reason', '')}" for f in metrics.get("run", {}).get("failures", [])]
+
+
 def run_table(result) -> Group:
     """Estimators and matchers of a finished run (fits 80 columns), then each expectation with its value."""
     m = result.metrics
@@ -23,9 +29,10 @@ def run_table(result) -> Group:
     table.add_column("under test", no_wrap=True)
     for col in ("APE\nrmse", "APE\np95", "APE\nmax", "outage\nmax", "RPE\n100 m", "yaw\np95", "match\nok", "Hz"):
         table.add_column(col, justify="right")
+    failed = {f.get("id") for f in m.get("run", {}).get("failures", [])}
     for eid, e in m["estimators"].items():
         table.add_row(
-            eid,
+            f"{eid} [bold red](failed)[/]" if eid in failed else eid,
             _num(e["ape"]["rmse"]),
             _num(e["ape"]["p95"]),
             _num(e["ape"]["max"]),
@@ -37,7 +44,7 @@ def run_table(result) -> Group:
         )
     for mid, x in m["matchers"].items():
         table.add_row(
-            f"{mid}*",
+            f"{mid}* [bold red](failed)[/]" if mid in failed else f"{mid}*",
             _num(x["ape"]["rmse"]),
             _num(x["ape"]["p95"]),
             _num(x["ape"]["max"]),

@@ -35,24 +35,15 @@ class _Sample:
 
 class Bootstrap:
     """Collects fixes; `alignment(stamp)` fits rotation+translation of the odometry track onto them
-    (2-D Procrustes) once they span `baseline_m`. Without odometry spanning the travel, or with odometry
-    whose travelled distance disagrees with the fixes' (a matcher not measuring the motion), the heading
+    (2-D Procrustes) once they span `baseline_m`. Without odometry spanning the travel, the heading
     is the GPS course (the boat moving forward). Only the last `window_s` of fixes are kept; the fit
     is computed only when asked for (start-up, re-lock), not on every fix."""
 
     def __init__(
-        self,
-        baseline_m: float,
-        min_fixes: int,
-        max_hdop: float,
-        lever: np.ndarray,
-        max_yaw_sd_deg: float = 5.0,
-        max_scale_error: float = 0.3,
-        window_s: float = 120.0,
+        self, baseline_m: float, min_fixes: int, max_hdop: float, lever: np.ndarray, max_yaw_sd_deg: float = 5.0, window_s: float = 120.0
     ) -> None:
         self.window_s = window_s
         self.max_yaw_var = np.radians(max_yaw_sd_deg) ** 2
-        self.max_scale_error = max_scale_error
         self.baseline_m = baseline_m
         self.min_fixes = min_fixes
         self.max_hdop = max_hdop
@@ -100,33 +91,20 @@ class Bootstrap:
             if np.linalg.norm(q[-1] - q[0]) >= 0.5 * self.baseline_m:
                 # the fit places the latest fix's odometry pose; a latest fix without odometry has none to place
                 odo = self._odo_at_last
-                if odo is None:
-                    return None
-                fit = self._procrustes(g, q, sigma2, odo)
-                if fit is not None:
-                    return fit
+                return self._procrustes(g, q, sigma2, odo) if odo is not None else None
         return self._course(gps, sigma2)
 
-    def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float, odo: np.ndarray) -> Alignment | None:
-        """Alignment placing `odo`, the odometry pose at the latest fix, from the fit of the odometry antenna track q onto the fixes g;
-        None when the track's scale (its least-squares stretch onto the fixes, Umeyama's) differs from 1 by more than
-        max_scale_error plus three of its standard errors (from the scaled fit's residuals, as the rigid fit's contain the
-        scale's misfit): a rigid fit of a track that travelled a different distance misplaces the pose."""
+    def _procrustes(self, g: np.ndarray, q: np.ndarray, sigma2: float, odo: np.ndarray) -> Alignment:
+        """Alignment placing `odo`, the odometry pose at the latest fix, from the fit of the odometry antenna track q onto the fixes g."""
         gc, qc = g - g.mean(0), q - q.mean(0)
         h = qc.T @ gc
         theta = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
         t = g.mean(0) - rot2(theta) @ q.mean(0)
         world = compose(np.array([t[0], t[1], theta]), odo)
-        spread = max(float(np.sum(qc**2)), 1e-9)
-        rotated = qc @ rot2(theta).T
-        scale = float(np.sum(gc * rotated)) / spread
-        dof = max(2 * (len(g) - 3), 1)  # per axis, after rotation, translation and scale
-        scale_var = max(sigma2, float(np.sum((gc - scale * rotated) ** 2)) / dof) / spread
-        if abs(scale - 1.0) > self.max_scale_error + 3.0 * np.sqrt(scale_var):
-            return None
+        spread = float(np.sum(qc**2))
         residual = g - (q @ rot2(theta).T + t)
         sigma2 = max(sigma2, float(np.sum(residual**2)) / max(2 * (len(g) - 2), 1))  # per axis
-        yaw_var = sigma2 / spread
+        yaw_var = sigma2 / max(spread, 1e-9)
         cov = np.diag([sigma2, sigma2, yaw_var])
         return Alignment(self._samples[-1].stamp, world, cov)
 

@@ -48,9 +48,7 @@ class Estimator:
         self.events: list[Event] = []
         self.stamp = -math.inf
         self.odometry = OdometryTrack()
-        self._bootstrap = Bootstrap(
-            params.init_baseline_m, params.init_min_fixes, params.init_max_hdop, self.lever, params.init_max_yaw_sd_deg, params.init_max_scale_error
-        )
+        self._bootstrap = Bootstrap(params.init_baseline_m, params.init_min_fixes, params.init_max_hdop, self.lever, params.init_max_yaw_sd_deg)
         self._height = 0.0
         self._height_var = math.inf
         sxy, syaw = params.default_odom_sigma_m, math.radians(params.default_odom_sigma_yaw_deg)

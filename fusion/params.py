@@ -96,14 +96,6 @@ class EstimatorParams(BaseEstimatorParams):
         description="start-up alignment needs a heading whose standard deviation (from the fit's residuals) is at most "
         "this [5 deg]; a re-lock re-aligns the same way when it can",
     )
-    init_max_scale_error: float = Field(
-        0.3,
-        gt=0,
-        description="start-up alignment fits the odometry track's shape only when the distance it travelled agrees with "
-        "the fixes' to within this fraction plus three standard errors of the fit, else it takes the GPS course [0.3: gicp "
-        "on its sensor-fixed grid reads an open basin's steps 22% short (benchmarks/gicp_grid.py); a matcher held at zero "
-        "velocity by a corridor's walls reads under half the travel]; a re-lock re-aligns the same way when it can",
-    )
     default_odom_sigma_m: float = Field(
         0.2,
         gt=0,

@@ -72,11 +72,12 @@ class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
         description="a reference point less planar than this (a single scan line) counts in the covariance in proportion (default 0.1)",
     )
     voxel_grid: Literal["sensor", "scene"] = Field(
-        "scene",
-        description="frame of the downsampling voxel grid: 'scene' (default) carries the reference's grid by the estimated "
-        "motion (matcher.scene_grid: -0.2 mm a scan along the route under charles_river's lock road); 'sensor' fixes it to "
-        "each scan's sensor frame, as small_gicp's preprocess_points and PCL's VoxelGrid do, so it aliases with the motion "
-        "(+39 mm a scan there; docs/models.md)",
+        "sensor",
+        description="frame of the downsampling voxel grid: 'sensor' fixes it to each scan's sensor frame, as small_gicp's "
+        "preprocess_points and PCL's VoxelGrid do, so it aliases with the motion (+39 mm a scan along the route under "
+        "charles_river's lock road); 'scene' carries the reference's grid by the estimated motion (matcher.scene_grid: "
+        "-0.2 mm there). Default sensor: as the default, 'scene' moved the library's metrics and crashed "
+        "steer_canal_multipath's closed loop on one seed through a bad start-up (docs/models.md)",
     )
     drop_comoving: bool = Field(True, description="drop returns from objects keeping station with the sensor, e.g. a chase boat (default true)")
 

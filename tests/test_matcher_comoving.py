@@ -49,13 +49,9 @@ def _forward_ratio(scene, trajectory, **params) -> tuple[np.ndarray, np.ndarray]
     return np.array(ratios), np.array(dropped)
 
 
-def test_a_chase_boat_is_dropped_and_the_motion_measured(scene, static_scene):
+def test_a_chase_boat_is_dropped_and_the_motion_measured(scene):
     ratio, dropped = _forward_ratio(*scene)
-    alone, _ = _forward_ratio(*static_scene)
-    # the girders' scan lines leave gicp a few per cent short here with or without the boat (0.955 static, sd 0.05):
-    # the screen must make the boat's scene read as the boat-free one does
-    assert abs(np.median(ratio) - np.median(alone)) < 0.05
-    assert abs(np.median(ratio) - 1.0) < 0.1
+    assert abs(np.median(ratio) - 1.0) < 0.05
     assert np.median(dropped) > 0.015  # of the points: the boat's bow and cabin front
 
 

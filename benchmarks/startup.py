@@ -51,21 +51,27 @@ def starts(run: Path, window_s: float) -> list[str]:
     """One table row per estimator of the run in `run`."""
     scenario = tomllib.loads((run / "scenario.toml").read_text(encoding="utf-8"))
     truth = read_tum(run / "groundtruth.tum", scenario_time=True)
+    true_heading = np.unwrap(heading(truth))
     label = f"{scenario.get('name', run.name)} seed {scenario.get('seed', '?')}"
+    tracks: dict[str, np.ndarray] = {}  # each TUM file read once, whichever estimators share it
+
+    def track(name: str) -> np.ndarray:
+        if name not in tracks:
+            path = run / f"{name}.tum"
+            tracks[name] = read_tum(path, scenario_time=True) if path.exists() else np.empty((0, 8))
+        return tracks[name]
+
     rows = []
     for estimator in scenario.get("estimators", []):
         eid, mid = estimator["id"], estimator.get("matcher")
-        path = run / f"{eid}.tum"
-        est = read_tum(path, scenario_time=True) if path.exists() else np.empty((0, 8))
+        est = track(eid)
         if not len(est):
             rows.append(f"| {label} | {eid} | never | | | | |")
             continue
         start = float(est[0, 0])
         error = float(np.hypot(*(est[0, 1:3] - truth_at(truth, np.array([start]))[0])))
-        true_yaw = float(np.interp(start, truth[:, 0], np.unwrap(heading(truth))))
-        yaw_error = math.degrees(float(wrap_angle(heading(est[:1])[0] - true_yaw)))
-        odometry = run / f"{mid}.tum" if mid else None
-        share = travelled_share(read_tum(odometry, scenario_time=True), truth, start, window_s) if odometry and odometry.exists() else math.nan
+        yaw_error = math.degrees(float(wrap_angle(heading(est[:1])[0] - np.interp(start, truth[:, 0], true_heading))))
+        share = travelled_share(track(mid), truth, start, window_s) if mid else math.nan
         rows.append(
             f"| {label} | {eid} | {start:.1f} | {start - truth[0, 0]:.1f} | {error:.2f} | {yaw_error:+.1f} | "
             f"{'-' if math.isnan(share) else f'{share:.2f}'} |"
@@ -85,7 +91,12 @@ def main() -> int:
     print("| run | estimator | start t s | after the run's start s | position error m | heading error deg | odometry / true travel |")
     print("|---|---|---|---|---|---|---|")
     for run in args.runs:
-        print("\n".join(starts(run, args.window)))
+        try:
+            rows = starts(run, args.window)
+        except (OSError, ValueError, KeyError) as exc:  # a missing or corrupt file of a run: one line naming it
+            print(f"error: {run}: {type(exc).__name__}: {exc}", file=sys.stderr)
+            return 2
+        print("\n".join(rows))
     return 0
 
 

@@ -64,3 +64,11 @@ def test_a_directory_without_a_scenario_is_one_line_and_exit_2(tmp_path, capsys,
     monkeypatch.setattr("sys.argv", ["startup.py", str(tmp_path)])
     assert _script().main() == 2
     assert capsys.readouterr().err.strip() == f"error: not a run directory (no scenario.toml): {tmp_path}"
+
+
+def test_a_corrupt_file_of_a_run_is_one_line_and_exit_2(run, capsys, monkeypatch):
+    (run / "gicp.tum").write_text("# timestamp tx ty tz qx qy qz qw\n1532876500.0 1 2 3\n")  # a truncated row
+    monkeypatch.setattr("sys.argv", ["startup.py", str(run)])
+    assert _script().main() == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {run}: ValueError:") and "\n" not in err

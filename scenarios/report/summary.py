@@ -29,10 +29,9 @@ def run_table(result) -> Group:
     table.add_column("under test", no_wrap=True)
     for col in ("APE\nrmse", "APE\np95", "APE\nmax", "outage\nmax", "RPE\n100 m", "yaw\np95", "match\nok", "Hz"):
         table.add_column(col, justify="right")
-    failed = {f.get("id") for f in m.get("run", {}).get("failures", [])}
     for eid, e in m["estimators"].items():
         table.add_row(
-            f"{eid} [bold red](failed)[/]" if eid in failed else eid,
+            f"{eid} [bold red](failed)[/]" if e.get("failed") else eid,
             _num(e["ape"]["rmse"]),
             _num(e["ape"]["p95"]),
             _num(e["ape"]["max"]),
@@ -44,7 +43,7 @@ def run_table(result) -> Group:
         )
     for mid, x in m["matchers"].items():
         table.add_row(
-            f"{mid}* [bold red](failed)[/]" if mid in failed else f"{mid}*",
+            f"{mid}* [bold red](failed)[/]" if x.get("failed") else f"{mid}*",
             _num(x["ape"]["rmse"]),
             _num(x["ape"]["p95"]),
             _num(x["ape"]["max"]),

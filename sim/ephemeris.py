@@ -17,7 +17,7 @@ validity (`MAX_AGE_S`), else not at all, as a receiver without a current ephemer
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
@@ -40,6 +40,9 @@ MAX_AGE_S = {"G": 7200.0, "R": 1800.0, "E": 14400.0, "C": 21600.0}
 """How far from its reference time a record is used, s: GPS half its 4 h curve fit interval (IS-GPS-200N 20.3.4.4; a
 record's own fit interval field overrides), the others as RTKLIB 2.4.3 (rtklib.h MAXDTOE_GLO, MAXDTOE_GAL,
 MAXDTOE_CMP), receivers' practice."""
+SWITCH_GUARD_S = 1e-6
+"""Within this of a switch time (Ephemeris._current) the record choice is made afresh, not taken from the interval's: a
+midpoint of two reference times can round by a few 1e-7 s at GPS seconds of 1.4e9."""
 GLO_MU = 3.9860044e14
 GLO_AE = 6378136.0
 GLO_J2 = 1082625.75e-9
@@ -90,6 +93,8 @@ class Ephemeris:
     name: str
     leap_seconds: int
     systems: dict[str, Satellites]
+    _switches: dict[str, np.ndarray] = field(default_factory=dict, init=False, repr=False, compare=False)
+    _chosen: dict[tuple[str, int, bytes], np.ndarray] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def satellites(self, letters: str) -> list[tuple[str, int]]:
         """(system letter, PRN) of every satellite of the given systems with at least one healthy record, sorted."""
@@ -113,14 +118,7 @@ class Ephemeris:
         sats = self.systems.get(letter)
         if sats is None or not len(prn):
             return out
-        age = np.abs(t_gps - sats.ref_s)
-        usable = (age <= sats.max_age_s) & sats.healthy
-        # per satellite: the usable record nearest in time
-        order = np.lexsort((np.where(usable, age, np.inf), sats.prn))
-        first = order[np.r_[True, sats.prn[order][1:] != sats.prn[order][:-1]]]
-        first = first[usable[first]]
-        rows = dict(zip(sats.prn[first].tolist(), first.tolist(), strict=True))
-        want = np.array([rows.get(int(p), -1) for p in prn])
+        want = self._current(letter, sats, prn, t_gps)
         have = want >= 0
         if not have.any():
             return out
@@ -131,6 +129,43 @@ class Ephemeris:
         else:
             out[have] = kepler_positions(letter, sats.prn[records], sats.values[records], dt)
         return out
+
+    def _current(self, letter: str, sats: Satellites, prn: np.ndarray, t_gps: float) -> np.ndarray:
+        """Per satellite of `prn`, the row of its usable record nearest in time at t (-1: none). The choice changes only at
+        a record's validity edges and half-way between two of a satellite's reference times, so it is computed once per
+        interval between those switch times (and afresh within SWITCH_GUARD_S of one)."""
+        if letter not in self._switches:
+            self._switches[letter] = _switch_times(sats)
+        switches = self._switches[letter]
+        i = int(np.searchsorted(switches, t_gps))
+        near = min(abs(t_gps - switches[j]) for j in (i - 1, i) if 0 <= j < len(switches)) if len(switches) else np.inf
+        if near <= SWITCH_GUARD_S:
+            return _nearest_usable(sats, prn, t_gps)
+        key = (letter, i, prn.tobytes())
+        if key not in self._chosen:
+            self._chosen[key] = _nearest_usable(sats, prn, t_gps)
+        return self._chosen[key]
+
+
+def _nearest_usable(sats: Satellites, prn: np.ndarray, t_gps: float) -> np.ndarray:
+    """Per satellite of `prn`, the row of its healthy record nearest in time among those valid at t (-1: none)."""
+    age = np.abs(t_gps - sats.ref_s)
+    usable = (age <= sats.max_age_s) & sats.healthy
+    order = np.lexsort((np.where(usable, age, np.inf), sats.prn))
+    first = order[np.r_[True, sats.prn[order][1:] != sats.prn[order][:-1]]]
+    first = first[usable[first]]
+    rows = dict(zip(sats.prn[first].tolist(), first.tolist(), strict=True))
+    return np.array([rows.get(int(p), -1) for p in prn], dtype=np.int64)
+
+
+def _switch_times(sats: Satellites) -> np.ndarray:
+    """Sorted times at which `_nearest_usable` may change its choice: every record's validity edges and the midpoints
+    between any two reference times of one satellite."""
+    edges = [sats.ref_s - sats.max_age_s, sats.ref_s + sats.max_age_s]
+    for number in np.unique(sats.prn):
+        ref = sats.ref_s[sats.prn == number]
+        edges.append(((ref[:, None] + ref[None, :]) / 2.0).ravel())
+    return np.unique(np.concatenate(edges))
 
 
 def _median_per_satellite(sats: Satellites, times: np.ndarray, pick) -> float:
@@ -154,7 +189,7 @@ def kepler_positions(letter: str, prn: np.ndarray, v: np.ndarray, tk: np.ndarray
     r = a * (1.0 - e * np.cos(ecc)) + crs * s2 + crc * c2
     inc = i0 + cis * s2 + cic * c2 + idot * tk
     x_orb, y_orb = r * np.cos(u), r * np.sin(u)
-    geo = (letter == "C") & np.isin(prn, list(BEIDOU_GEO))
+    geo = np.isin(prn, list(BEIDOU_GEO)) if letter == "C" else np.zeros(len(prn), dtype=bool)
     node = omega0 + np.where(geo, omega_dot * tk, (omega_dot - we) * tk) - we * toe
     cn, sn, ci, si = np.cos(node), np.sin(node), np.cos(inc), np.sin(inc)
     xyz = np.stack([x_orb * cn - y_orb * ci * sn, x_orb * sn + y_orb * ci * cn, y_orb * si], axis=1)

@@ -206,3 +206,18 @@ def test_default_epoch_is_inside_the_shipped_file_with_room_for_the_longest_rout
     start = GnssReceiver().config.epoch_utc
     constellation.check(start)
     constellation.check(start + timedelta(hours=1))
+
+
+def test_the_record_chosen_per_interval_is_the_one_chosen_afresh_at_every_time():
+    """Ephemeris keeps each satellite's record choice between switch times (validity edges, midpoints of reference times):
+    at random times, at every switch time and just after each, the kept choice is the direct one."""
+    sky = Constellation.load(DEFAULT_EPHEMERIS, ("GPS", "GLONASS", "GALILEO", "BEIDOU"))
+    source = sky.source
+    lo, hi = (eph.gps_seconds(t, source.leap_seconds) for t in (sky.start_utc, sky.end_utc))
+    for letter, rows in sky._groups:
+        sats, prn = source.systems[letter], sky.prn[rows]
+        switches = eph._switch_times(sats)
+        switches = switches[(switches > lo) & (switches < hi)]
+        times = np.concatenate([np.random.default_rng(7).uniform(lo, hi, 500), switches, switches + 1e-7, switches + 2e-6, switches - 2e-6])
+        for t in np.sort(times):
+            assert np.array_equal(source._current(letter, sats, prn, float(t)), eph._nearest_usable(sats, prn, float(t)))

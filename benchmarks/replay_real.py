@@ -1,7 +1,8 @@
 """Real Velodyne captures replayed with a scenario's default stack (gicp and four estimators): per capture the sensor
 found, whole revolutions kept and partial ones dropped, the matcher's success, the fixes read against those in the
 file, the clock offsets measured, and the realtime factor (capture duration / wall time, median over rounds) with
-1 and 2 processes.
+1 and 2 processes, and with 1 process and gicp on 2 threads (`--set matchers.gicp.params.num_threads=2`: a replay's
+main process only reads packets, so gicp's second thread has a core to itself).
 
     .venv/bin/python benchmarks/replay_real.py [PCAP ...] [--scenario quickstart] [--rounds 3]
 
@@ -31,18 +32,22 @@ def main() -> None:
     parser.add_argument("--scenario", default="quickstart")
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
-    scenario = scenarios.load(args.scenario)
+    setups = {  # (processes, gicp threads) -> the scenario
+        (1, 1): scenarios.load(args.scenario),
+        (2, 1): scenarios.load(args.scenario),
+        (1, 2): scenarios.load(args.scenario, set=["matchers.gicp.params.num_threads=2"]),
+    }
     print(f"scenario {args.scenario} (default stack); realtime factor = capture duration / wall time, median of {args.rounds}")
-    head = ["capture", "sensor", "s", "scans", "dropped", "gicp ok", "fixes", "capture-sensor", "sensor-GNSS", "capture-GNSS", "1 proc", "2 proc"]
-    print(" | ".join(head))
+    head = ["capture", "sensor", "s", "scans", "dropped", "gicp ok", "fixes", "capture-sensor", "sensor-GNSS", "capture-GNSS"]
+    print(" | ".join(head + ["1 proc", "2 proc", "1 proc, gicp 2 threads"]))
     with tempfile.TemporaryDirectory(prefix="riverbench-real-") as root:
         for path in args.pcaps:
-            factors: dict[int, list[float]] = {1: [], 2: []}
-            for workers in (1, 2):
+            factors: dict[tuple[int, int], list[float]] = {setup: [] for setup in setups}
+            for (workers, threads), scenario in setups.items():
                 for k in range(args.rounds):
-                    out = Path(root) / f"{path.stem}-{workers}-{k}"
+                    out = Path(root) / f"{path.stem}-{workers}-{threads}-{k}"
                     result = replay(path, scenario, out, workers=workers, report=False)
-                    factors[workers].append(result.metrics["run"]["realtime_factor"])
+                    factors[workers, threads].append(result.metrics["run"]["realtime_factor"])
                     shutil.rmtree(out)
             run, rec = result.metrics["run"], result.metrics["run"]["recording"]
             clocks = rec["clocks"]
@@ -55,8 +60,7 @@ def main() -> None:
                 f"{result.metrics['matchers']['gicp']['success']:.2f}",
                 f"{run['fixes']}/{rec['fixes_in_file']}",
                 *(offset(clocks[key]) for key in ("capture_minus_sensor_s", "sensor_minus_gnss_s", "capture_minus_gnss_s")),
-                f"{np.median(factors[1]):.2f}x",
-                f"{np.median(factors[2]):.2f}x",
+                *(f"{np.median(values):.2f}x" for values in factors.values()),
             ]
             print(" | ".join(row))
 

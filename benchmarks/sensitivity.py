@@ -12,7 +12,8 @@ touches a single point can look like a regression of the whole seed spread, and 
 from __future__ import annotations
 
 import argparse
-import json
+import math
+import sys
 import tempfile
 from pathlib import Path
 
@@ -20,6 +21,7 @@ import numpy as np
 
 import scenarios
 import sim
+from scenarios.score.baseline import flatten, load
 from scenarios.spec.library import load_fast
 from sim.scan import Scan
 
@@ -27,19 +29,8 @@ BASELINE = Path(__file__).resolve().parent / "baseline" / "library.json"
 METRICS = ("ape.p95", "ape.max", "yaw.p95", "windows.blackout.max_error")
 
 
-def flat(tree: dict, prefix: str = "") -> dict[str, float]:
-    """Numeric leaves of a metrics tree as dotted keys."""
-    out: dict[str, float] = {}
-    for key, value in tree.items():
-        if isinstance(value, dict):
-            out.update(flat(value, f"{prefix}{key}."))
-        elif isinstance(value, int | float) and not isinstance(value, bool):
-            out[f"{prefix}{key}"] = float(value)
-    return out
-
-
-def run(name: str, seed: int, out: Path, drop_at: float | None) -> dict[str, float]:
-    """The flat metrics of the [fast] run of `name`; with drop_at, the revolution starting nearest it loses its farthest return."""
+def run(name: str, seed: int, out: Path, drop_at: float | None) -> dict:
+    """The metrics tree of the [fast] run of `name`; with drop_at, the revolution starting nearest it loses its farthest return."""
     spec = load_fast(name, seed=seed)
     original = sim.HDL32E.scan
 
@@ -53,37 +44,45 @@ def run(name: str, seed: int, out: Path, drop_at: float | None) -> dict[str, flo
 
     sim.HDL32E.scan = scan  # the LiDAR runs in this process (the matcher pool gets the scans it produced)
     try:
-        result = scenarios.run(spec, out, workers=1, report=False)
+        return scenarios.run(spec, out, workers=1, report=False).metrics
     finally:
         sim.HDL32E.scan = original
-    return flat(result.metrics)
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenarios", nargs="*", default=["charles_river", "quickstart", "chase_boat"])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--baseline", type=Path, default=BASELINE)
     args = parser.parse_args()
-    stored = json.loads(args.baseline.read_text())["scenarios"]
+    try:
+        stored = load(args.baseline).scenarios
+        for name in args.scenarios:
+            load_fast(name)  # an unknown scenario or one without a [fast] variant: refused before anything runs
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     print("| scenario [fast] | seed | metric | as is | one return dropped | move | range over the baseline's seeds | move / range |")
     print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory(prefix="riverbench-sensitivity-") as root:
         for name in args.scenarios:
-            before = run(name, args.seed, Path(root) / f"{name}-as-is", None)
-            middle = 0.5 * (before["run.t_start"] + before["run.t_end"])
-            after = run(name, args.seed, Path(root) / f"{name}-dropped", middle)
-            seeds = stored.get(name, {}).get("metrics", {})
-            keys = [k for k in before if k.startswith(("estimators.", "matchers.")) and k.split(".", 2)[2] in METRICS]
-            for key in keys:
+            as_is = run(name, args.seed, Path(root) / f"{name}-as-is", None)
+            middle = 0.5 * (as_is["run"]["t_start"] + as_is["run"]["t_end"])
+            before, after = flatten(as_is), flatten(run(name, args.seed, Path(root) / f"{name}-dropped", middle))
+            seeds = stored[name].metrics if name in stored else {}
+            for key, value in before.items():
+                if value is None or not key.startswith(("estimators.", "matchers.")) or key.split(".", 2)[2] not in METRICS:
+                    continue
                 values = [v for v in seeds.get(key, []) if v is not None]
-                spread = max(values) - min(values) if len(values) > 1 else float("nan")
-                move = after.get(key, float("nan")) - before[key]
-                share = abs(move) / spread if spread > 0 else float("nan")
+                spread = max(values) - min(values) if len(values) > 1 else math.nan
+                moved = after.get(key)
+                move = math.nan if moved is None else moved - value
+                share = abs(move) / spread if spread > 0 else math.nan
                 label = key.replace("estimators.", "").replace("matchers.", "")
-                cells = [name, str(args.seed), label, f"{before[key]:.3g}", f"{after.get(key, float('nan')):.3g}", f"{move:+.3g}", f"{spread:.3g}"]
+                cells = [name, str(args.seed), label, f"{value:.3g}", f"{value + move:.3g}", f"{move:+.3g}", f"{spread:.3g}"]
                 print("| " + " | ".join([*cells, f"{share:.2f}"]) + " |", flush=True)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

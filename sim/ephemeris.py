@@ -138,8 +138,8 @@ class Ephemeris:
             self._switches[letter] = _switch_times(sats)
         switches = self._switches[letter]
         i = int(np.searchsorted(switches, t_gps))
-        near = min(abs(t_gps - switches[j]) for j in (i - 1, i) if 0 <= j < len(switches)) if len(switches) else np.inf
-        if near <= SWITCH_GUARD_S:
+        beside = switches[max(i - 1, 0) : i + 1]  # the switch times either side of t
+        if len(beside) and float(np.min(np.abs(beside - t_gps))) <= SWITCH_GUARD_S:
             return _nearest_usable(sats, prn, t_gps)
         key = (letter, i, prn.tobytes())
         if key not in self._chosen:

@@ -192,16 +192,24 @@ class HDL32E:
         water = np.zeros(len(ray_index), dtype=bool)
         part[at_plain], reflectivity[at_plain], water[at_plain] = _surfaces(world, traffic, primitive, movers_hit, plain)
         rng_true = t_hit[ray_index].astype(np.float64)
-        # returned power ~ reflectivity * cos(incidence) / r^2 (Lambertian target filling the beam)
-        power = reflectivity * cos_all[ray_index] / rng_true**2
-        rng_true[at_mixed], power[at_mixed], part[at_mixed] = mixed_range, mixed_power, mixed_part
+        rng_true[at_mixed] = mixed_range
         cos_inc = cos_all[ray_index]
 
         # one stream per revolution, so a scan depends only on (seed, t0), not on the call order
         rng = stream(cfg.seed, f"sim.lidar@{t0:.9f}")
         draw = rng.random(len(rng_true))
-        p_return = detection_probability(power, self._detect_k, cfg.dropout_rate)
-        p_return[water] = cfg.water_return_prob * cos_inc[water] ** cfg.water_return_exponent
+        # Most rays hit water, which returns at most water_return_prob: only the water rays whose draw is below
+        # the largest of their probabilities can return, so theirs are the only ones worth computing.
+        might = water & (draw < _water_return(cos_inc[water].max(initial=0.0, keepdims=True), cfg))
+        dry = ~water
+        lit_rays = dry | might
+        # returned power ~ reflectivity * cos(incidence) / r^2 (Lambertian target filling the beam)
+        power = np.zeros(len(ray_index))
+        power[lit_rays] = reflectivity[lit_rays] * cos_inc[lit_rays] / rng_true[lit_rays] ** 2
+        power[at_mixed], part[at_mixed] = mixed_power, mixed_part
+        p_return = np.zeros(len(ray_index))
+        p_return[dry] = detection_probability(power[dry], self._detect_k, cfg.dropout_rate)
+        p_return[might] = _water_return(cos_inc[might], cfg)
         if self._blinded(t0):
             p_return = p_return * cfg.blinding_keep
         returned = draw < p_return
@@ -315,6 +323,11 @@ class HDL32E:
             t_hit = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
             self._occlusion[key] = ~np.isfinite(t_hit)
         return self._occlusion[key]
+
+
+def _water_return(cos_incidence: np.ndarray, cfg: HDL32EConfig) -> np.ndarray:
+    """Probability that a ray hitting water at this incidence cosine returns (specular, absorbing surface)."""
+    return cfg.water_return_prob * cos_incidence**cfg.water_return_exponent
 
 
 def _surfaces(

@@ -18,6 +18,7 @@ zero, to a quarter of the true one under the BU Bridge."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import cached_property
 from typing import Any, Literal
 
 import numpy as np
@@ -120,7 +121,13 @@ class _Prepared:
             self.points, self.tree = downsample(xyz, grid, p.voxel_m, p.num_neighbors, p.num_threads)
         self.xyz, self.normals = self.points.points()[:, :3], self.points.normals()[:, :3]
         self.nearest = _NearestPlane(self.tree, len(self.xyz))
-        self.normal_weight = np.minimum(planarity(xyz, self.xyz, p.planarity_voxel_m) / p.min_planarity, 1.0)
+        self._raw, self._p = xyz, p
+
+    @cached_property
+    def normal_weight(self) -> np.ndarray:
+        """How far each point's normal can be trusted: its planarity over min_planarity, at most 1. Found when first
+        wanted, as a reference's: a scan de-skewed again in a later round, or a failed one prepared again, never is."""
+        return np.minimum(planarity(self._raw, self.xyz, self._p.planarity_voxel_m) / self._p.min_planarity, 1.0)
 
     def plane_fit(self, ref: _Prepared, T: np.ndarray, p: GicpParams) -> PlaneFit:
         """Point-to-plane information of this scan moved by T against the reference's planes (the

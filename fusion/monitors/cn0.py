@@ -305,30 +305,40 @@ class Cn0Monitor(Monitor):
     def _deficit(self, obs: FixObservation) -> tuple[float, float | None, str, str]:
         """(largest normalised deficit of the used satellites, template sigma or None when it cannot judge,
         the satellites over the gate, a note on skipped reports or why it cannot judge)."""
+        judged = self.satellite_deficits(obs)
+        if isinstance(judged, str):
+            return math.nan, None, "", judged
+        deficit, used, sigma, skipped = judged
+        names = [_label(s) for s in used]
+        named = ", ".join(f"{name} {d:.1f}" for d, name in sorted(zip(deficit.tolist(), names), reverse=True) if d > self.gate)
+        return float(deficit.max()), sigma, named, skipped
+
+    def satellite_deficits(self, obs: FixObservation) -> tuple[np.ndarray, list, float, str] | str:
+        """Each used satellite's normalised C/N0 deficit below what a direct signal gives (the verdict's evidence, per
+        satellite): (deficits, the used satellites' reports they belong to, the template's sigma in dB, a note on
+        skipped reports), or why the fix cannot be judged."""
         used = [s for s in obs.sats if getattr(s, "used", False)]
         if not used:
-            return math.nan, None, "", "unchecked: no used satellite reported"
+            return "unchecked: no used satellite reported"
         el = np.array([_float(s.el_deg) for s in used])
         snr = np.array([_float(s.snr) for s in used])
         ok = _valid(el, snr)
         skipped = "" if ok.all() else f"; skipped PRN {', '.join(str(s.prn) for s, k in zip(used, ok) if not k)} (bad C/N0 or elevation)"
         if not ok.any():
-            return math.nan, None, "", "unchecked: no used satellite with a valid C/N0 and elevation" + skipped
+            return "unchecked: no used satellite with a valid C/N0 and elevation" + skipped
         learned = self.template(el[ok])
         if learned is None:
             full = int((self._count >= self.params.min_samples_per_bin).sum())
-            return math.nan, None, "", f"learning the C/N0 template ({full}/{self.params.min_bins} bins)" + skipped
+            return f"learning the C/N0 template ({full}/{self.params.min_bins} bins)" + skipped
         expected, sigma = learned
-        signals = [self._signal(s) for s, k in zip(used, ok) if k]
+        judged = [s for s, k in zip(used, ok) if k]
+        signals = [self._signal(s) for s in judged]
         scale: float | np.ndarray = sigma
         if any(signals):
             expected = expected + self._offset[signals]
             own = self._spread[signals]
             scale = np.where(np.isfinite(own), np.maximum(own, sigma), sigma)
-        deficit = (expected - snr[ok]) / scale
-        names = [_label(s) for s, k in zip(used, ok) if k]
-        named = ", ".join(f"{name} {d:.1f}" for d, name in sorted(zip(deficit.tolist(), names), reverse=True) if d > self.gate)
-        return float(deficit.max()), sigma, named, skipped
+        return (expected - snr[ok]) / scale, judged, sigma, skipped
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
         """Remember the fix's deficit for the hold; learn from every tracked satellite (used or not) and refit the template."""

@@ -98,6 +98,22 @@ def test_weak_used_satellites_flag_the_fix_and_are_named(learned):
     assert "PRN 3" in verdict.reason and "PRN 6" in verdict.reason and "PRN 1 " not in verdict.reason
 
 
+def test_satellite_deficits_are_the_verdicts_evidence_per_used_satellite(learned):
+    rng = np.random.default_rng(1)
+    el = np.array([12.0, 25.0, 40.0, 55.0, 70.0, 80.0])
+    snr = direct_cn0(el, rng)
+    snr[2] -= NLOS_LOSS_DB
+    used = np.array([True, True, True, True, False, True])
+    obs = screen(make_fix(100.0, el, snr, used), 3.0, False)[0]
+    deficits, sats, sigma, note = learned.satellite_deficits(obs)
+    expected, _ = learned.template(el[used])
+    assert [s.prn for s in sats] == [1, 2, 3, 4, 6] and note == ""
+    np.testing.assert_allclose(deficits, (expected - snr[used]) / sigma)
+    assert int(np.argmax(deficits)) == 2 and deficits[2] > learned.gate
+    assert learned.check(obs, CTX).statistic == deficits.max()
+    assert monitors.create("cn0").satellite_deficits(obs).startswith("learning the C/N0 template")
+
+
 def test_a_weak_satellite_the_receiver_did_not_use_is_harmless(learned):
     rng = np.random.default_rng(2)
     el = np.array([12.0, 25.0, 40.0, 55.0, 70.0, 80.0])

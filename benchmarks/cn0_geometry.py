@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 
 import numpy as np
 
@@ -85,13 +86,21 @@ def stream(name: str, seed: int, fault_m: float, bias_m: list[float]) -> dict[st
     return counts
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", nargs="*", default=["charles_river", "busy_waterway", "dam_lock", "canal_multipath"])
     parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
     parser.add_argument("--fault-m", type=float, default=5.0, help="environment-added error that makes a fix faulty, m [5]")
     parser.add_argument("--bias-m", nargs="*", type=float, default=[20.0, 30.0, 40.0], help="NLOS range bias assumed per suspect, m")
     args = parser.parse_args()
+    try:
+        for name in args.scenarios:
+            scenarios.load(name)  # an unknown scenario is refused before anything runs
+        if min([args.fault_m, *args.bias_m]) <= 0:
+            raise ValueError(f"--fault-m and --bias-m must be positive, got {args.fault_m} and {args.bias_m}")
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     print(f"fault: environment-added horizontal error > {args.fault_m:g} m; [fast] stretches, seeds {args.seeds}")
     print("| scenario | rule | faulty fixes | recall | good fixes | false alarms |")
     print("|---|---|---:|---:|---:|---:|")
@@ -104,7 +113,8 @@ def main() -> None:
             recall = f"{caught / faulty:.3f}" if faulty else "-"
             false_alarms = f"{alarms / good:.3f}" if good else "-"
             print(f"| {name} | {rule} | {faulty} | {recall} | {good} | {false_alarms} |")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

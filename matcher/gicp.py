@@ -8,7 +8,10 @@ turn about the line, and such points fake information along the surface: the rin
 sensor draws on it moves with the sensor, so they favour "no motion". Under charles_river's
 Charlestown Bridge (a flat deck, piers at 10 deg to the route) GICP reported the boat stopped,
 +-1 cm, while entering and leaving the deck. Along a translation the planes leave free, the motion
-prior is kept (matcher.remap). Degenerate rotations keep GICP's estimate and only get the inflated
+prior is kept (matcher.remap), once there is one: before the first good match, or after the prior
+expires, no motion is known and the prior is the identity, which kept there would pin the boat at rest
+for as long as the direction stays free (between canal_lock's canyon walls it measured none of the
+travel over 50 revolutions), so there GICP's answer stands. Degenerate rotations keep GICP's estimate and only get the inflated
 covariance: they are judged against yaw's information, which the lever arms of distant points make
 large, so a roll measured to 0.1 deg by a canal's walls is flagged too, and a constant-rate prior
 in a chop is worse than that. Returns from a boat keeping station with the sensor (a chase boat)
@@ -194,7 +197,8 @@ class Gicp(DeskewingMatcher[_Prepared]):
             )
             fit = cur.plane_fit(ref, res.T_target_source, p)
             cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
-            T = keep_prior_along(res.T_target_source, prior, fit.H, [d for d in degeneracy.directions if d[:3].any()])
+            held = [d for d in degeneracy.directions if d[:3].any()] if self.velocity.twist_per_s is not None else []
+            T = keep_prior_along(res.T_target_source, prior, fit.H, held)
             return T, (res, fit, cov_param, degeneracy)
 
         ref, cur, aligned = deskew_rounds(

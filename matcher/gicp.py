@@ -9,9 +9,10 @@ sensor draws on it moves with the sensor, so they favour "no motion". Under char
 Charlestown Bridge (a flat deck, piers at 10 deg to the route) GICP reported the boat stopped,
 +-1 cm, while entering and leaving the deck. Along a translation the planes leave free, the motion
 prior is kept (matcher.remap), once there is one: before the first good match, or after the prior
-expires, no motion is known and the prior is the identity, which kept there would pin the boat at rest
-for as long as the direction stays free (between canal_lock's canyon walls it measured none of the
-travel over 50 revolutions), so there GICP's answer stands. Degenerate rotations keep GICP's estimate and only get the inflated
+expires, the prior is the identity, and kept where the scans measure the motion to a few cm (between
+canal_lock's canyon walls, whose relative degeneracy hides an absolute 2 cm) it pinned the boat at rest
+for as long as the walls ran, so there GICP's answer stands; where they measure nothing (open water,
+no plane in range) GICP's answer is noise, and the identity stays. Degenerate rotations keep GICP's estimate and only get the inflated
 covariance: they are judged against yaw's information, which the lever arms of distant points make
 large, so a roll measured to 0.1 deg by a canal's walls is flagged too, and a constant-rate prior
 in a chop is worse than that. Returns from a boat keeping station with the sensor (a chase boat)
@@ -175,6 +176,16 @@ class Gicp(DeskewingMatcher[_Prepared]):
 
         return screen
 
+    def _held(self, degeneracy: Degeneracy, sigma2: float) -> list[np.ndarray]:
+        """The free translations along which the motion prior is kept. With no motion known yet (the identity
+        predicted), only those the scans did not measure either: a standard deviation sqrt(sigma2 / information) of at
+        least degenerate_sigma_m, the covariance's "unknown"."""
+        free = [d for d in degeneracy.directions if d[:3].any()]  # ascending information, as translation_information
+        if self.velocity.twist_per_s is not None:
+            return free
+        information = degeneracy.translation_information[: len(free)]
+        return [d for d, mu in zip(free, information, strict=True) if mu <= 0 or sigma2 / mu >= self.p.degenerate_sigma_m**2]
+
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p
         prior = self.velocity.predict(dt)
@@ -197,8 +208,7 @@ class Gicp(DeskewingMatcher[_Prepared]):
             )
             fit = cur.plane_fit(ref, res.T_target_source, p)
             cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
-            held = [d for d in degeneracy.directions if d[:3].any()] if self.velocity.twist_per_s is not None else []
-            T = keep_prior_along(res.T_target_source, prior, fit.H, held)
+            T = keep_prior_along(res.T_target_source, prior, fit.H, self._held(degeneracy, fit.sigma2))
             return T, (res, fit, cov_param, degeneracy)
 
         ref, cur, aligned = deskew_rounds(

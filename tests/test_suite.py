@@ -145,9 +145,6 @@ NO_LONGER_DISCRIMINATING = {
     "steer_harvard_bridge": "with the SBAS four-system receiver the Harvard Bridge outage is ~1.2 s (4 s GPS alone), and the "
     "autopilot steered on gps_only keeps 1.50 m cross-track (seed 0) inside the ekf-steered bound of 3.0 m (baseline "
     "median 1.65, 0.20-2.87): the scenario needs a longer blackout to tell a fused estimate from the receiver's",
-    "rough_water": "measured on the machine the library baseline was re-measured on (f89847b): the ekf turned into gps_only "
-    "gives rpe_10m.mean 0.2484 and yaw p95 1.516 (seed 0), inside the bounds derived from seeds 0-2 there (< 0.249, < 1.59); "
-    "rough_water is one of the three scenarios whose numbers moved between machines, so its bounds need the 5-seed refresh",
 }
 """Scenarios whose expectations no longer fail without what they test, and why (measured); a strict xfail each."""
 

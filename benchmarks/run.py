@@ -1,13 +1,14 @@
 """Scenario run speed and memory: real-time factor and peak memory of `riverbench run` on
-charles_river stretches of several lengths, for the default stack (gicp + the four estimators) and
-with all four matchers (pcl6d, bev3dof, kiss_icp, gicp; the estimators on gicp).
+charles_river stretches of several lengths, for the default stack (gicp + the four estimators), with all
+four matchers (pcl6d, bev3dof, kiss_icp, gicp; the estimators on gicp), and with the IMU and compass
+(the default stack plus the MTi-630 IMU, its compass and an ekf fed both).
 
 Each configuration runs in its own process (`riverbench run ... --no-report --quiet`), so its peak
 memory is its own; the figures come from the run's metrics.json (wall time from world load to the
-last file, peak RSS of the run's processes summed). Targets: default stack >= 5x real time, all
+last file, peak RSS of the run's processes summed). Targets: default and inertial stacks >= 5x real time, all
 four matchers >= 1.5x, peak memory within 10% between 10 and 30 minutes (memory flat in length).
 
-    .venv/bin/python benchmarks/run.py [--minutes 5 10 30] [--stacks default all4] [--workers 2]
+    .venv/bin/python benchmarks/run.py [--minutes 5 10 30] [--stacks default all4 inertial] [--workers 2]
 """
 
 from __future__ import annotations
@@ -23,8 +24,16 @@ ALL_FOUR = (
     'matchers=[{id = "gicp", kind = "gicp"}, {id = "kiss_icp", kind = "kiss_icp"}, '
     '{id = "bev3dof", kind = "bev3dof"}, {id = "pcl6d", kind = "pcl6d"}]'
 )
-STACKS = {"default": [], "all4": [ALL_FOUR]}
-TARGET = {"default": 5.0, "all4": 1.5}
+INERTIAL = [  # the default stack plus issue 23's: the industrial IMU and its compass, an ekf fed both beside the others
+    'estimators=[{id = "gps_only", kind = "gps_only", monitor = "none"}, '
+    '{id = "hdop_switch", kind = "hdop_switch", matcher = "gicp", monitor = "hdop"}, '
+    '{id = "ekf", kind = "ekf", matcher = "gicp", monitor = "combined_cn0"}, {id = "pf", kind = "pf", matcher = "gicp", monitor = "none"}, '
+    '{id = "ekf_inertial", kind = "ekf", matcher = "gicp", monitor = "combined_cn0", sensors = ["gnss", "odometry", "imu", "compass"]}]',
+    'imu={preset = "mti630"}',
+    "compass={}",
+]
+STACKS = {"default": [], "all4": [ALL_FOUR], "inertial": INERTIAL}
+TARGET = {"default": 5.0, "all4": 1.5, "inertial": 5.0}
 
 
 def measure(minutes: float, stack: str, workers: int, scenario: str) -> dict:

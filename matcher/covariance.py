@@ -16,6 +16,7 @@ class Degeneracy:
     translation_information: np.ndarray
     rotation_information: np.ndarray
     directions: list[np.ndarray]
+    direction_information: list[float]  # the marginal information along each of `directions`
 
     @property
     def translation_ratios(self) -> np.ndarray:
@@ -76,7 +77,7 @@ def covariance_from_hessian(
     lam, V = np.linalg.eigh(Hs)
     var = np.where(lam > 0, sigma2 / np.where(lam > 0, lam, 1.0), 1.0)
     cov_s = (V * np.minimum(var, 1.0)) @ V.T
-    information, directions = {}, []
+    information, directions, along = {}, [], []
     for kind in (False, True):
         keep = rot == kind
         if not keep.any():
@@ -89,12 +90,13 @@ def covariance_from_hessian(
             v = np.zeros(len(rot))
             v[keep] = U[:, i]
             directions.append(v)
+            along.append(float(mu[i]))
             vs = v / limit  # the same direction in the scaled parameters
             vs /= np.linalg.norm(vs)
             current = float(vs @ cov_s @ vs)
             cov_s += max(1.0 - current, 0.0) * np.outer(vs, vs)
     cov = D @ cov_s @ D
-    return 0.5 * (cov + cov.T), Degeneracy(information[False], information[True], directions)
+    return 0.5 * (cov + cov.T), Degeneracy(information[False], information[True], directions, along)
 
 
 def to_xyzrpy(cov_param: np.ndarray, J: np.ndarray) -> np.ndarray:

@@ -8,14 +8,14 @@ turn about the line, and such points fake information along the surface: the rin
 sensor draws on it moves with the sensor, so they favour "no motion". Under charles_river's
 Charlestown Bridge (a flat deck, piers at 10 deg to the route) GICP reported the boat stopped,
 +-1 cm, while entering and leaving the deck. Along a translation the planes leave free, the motion
-prior is kept (matcher.remap), once there is one: before the first good match, or after the prior
-expires, the prior is the identity, and kept where the scans measure the motion to a few cm (between
-canal_lock's canyon walls, whose relative degeneracy hides an absolute 2 cm) it pinned the boat at rest
-for as long as the walls ran, so there GICP's answer stands; where they measure nothing (open water,
-no plane in range) GICP's answer is noise, and the identity stays. Degenerate rotations keep GICP's estimate and only get the inflated
-covariance: they are judged against yaw's information, which the lever arms of distant points make
-large, so a roll measured to 0.1 deg by a canal's walls is flagged too, and a constant-rate prior
-in a chop is worse than that. Returns from a boat keeping station with the sensor (a chase boat)
+prior is kept (matcher.remap). Before the first good match, or after the prior expires, there is no
+prior, only the identity: where the scans still measure the motion (between canal_lock's canyon walls
+it is degenerate relative to the lateral information, yet measured to 2 cm) keeping it pinned the boat
+at rest for as long as the walls ran, so there GICP's answer stands; where they measure nothing (open
+water, no plane in range) GICP's answer is noise, and the identity stays. Degenerate rotations keep
+GICP's estimate and only get the inflated covariance: they are judged against yaw's information,
+which the lever arms of distant points make large, so a roll measured to 0.1 deg by a canal's walls
+is flagged too, and a constant-rate prior in a chop is worse than that. Returns from a boat keeping station with the sensor (a chase boat)
 are dropped before registering (matcher.comoving): taken as static, they pulled the motion towards
 zero, to a quarter of the true one under the BU Bridge."""
 
@@ -180,11 +180,12 @@ class Gicp(DeskewingMatcher[_Prepared]):
         """The free translations along which the motion prior is kept. With no motion known yet (the identity
         predicted), only those the scans did not measure either: a standard deviation sqrt(sigma2 / information) of at
         least degenerate_sigma_m, the covariance's "unknown"."""
-        free = [d for d in degeneracy.directions if d[:3].any()]  # ascending information, as translation_information
-        if self.velocity.twist_per_s is not None:
-            return free
-        information = degeneracy.translation_information[: len(free)]
-        return [d for d, mu in zip(free, information, strict=True) if mu <= 0 or sigma2 / mu >= self.p.degenerate_sigma_m**2]
+        known = self.velocity.twist_per_s is not None
+        return [
+            d
+            for d, mu in zip(degeneracy.directions, degeneracy.direction_information, strict=True)
+            if d[:3].any() and (known or mu <= 0 or sigma2 / mu >= self.p.degenerate_sigma_m**2)
+        ]
 
     def _match(self, cloud: Cloud, dt: float) -> MatchResult:
         p = self.p

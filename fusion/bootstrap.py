@@ -50,6 +50,7 @@ class Bootstrap:
         self.lever = lever
         self._samples: list[_Sample] = []
         self._odo_at_last: np.ndarray | None = None  # odometry pose (x, y, yaw) at the latest kept fix
+        self._segment: int | None = None  # every kept sample is on this odometry chain or on none
 
     def add(self, obs: FixObservation, odometry: OdometryTrack) -> None:
         """Keep one fix (fixes above max_hdop are not kept)."""
@@ -57,8 +58,9 @@ class Bootstrap:
             return
         odo = odometry.pose_at(obs.stamp) if odometry.velocity() is not None else None
         segment = odometry.segment if odo is not None else None
-        if segment is not None:  # fixes seen on an earlier (broken) chain no longer link to this one
+        if segment is not None and segment != self._segment:  # fixes seen on an earlier (broken) chain no longer link to this one
             self._samples = [f if f.segment in (None, segment) else _Sample(f.stamp, f.xy, f.var, None, None) for f in self._samples]
+            self._segment = segment
         antenna = None if odo is None else odo[:2] + rot2(odo[2]) @ self.lever
         self._samples.append(_Sample(obs.stamp, np.asarray(obs.xy, dtype=float), float(np.trace(obs.cov)) / 2.0, antenna, segment))
         self._odo_at_last = odo

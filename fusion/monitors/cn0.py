@@ -436,7 +436,7 @@ class Cn0Monitor(Monitor):
         residual = cn0 - (a + b * sin)
         level = np.full(len(self._signals), np.nan)
         for k in np.flatnonzero(ready):
-            q_mid, q_high = np.quantile(residual[groups == k], [p.mid_q, p.high_q])
+            q_mid, q_high = _sorted_quantiles(np.sort(residual[groups == k]), np.array([p.mid_q, p.high_q]))
             level[k] = float(q_mid) - self._z_mid * self._sigma
             if k:
                 self._spread[k] = max(float(q_high - q_mid) / (self._z_high - self._z_mid), self._sigma)
@@ -447,7 +447,8 @@ class Cn0Monitor(Monitor):
 def _quantile_by_group(values: np.ndarray, group: np.ndarray, counts: np.ndarray, q: float) -> np.ndarray:
     """The q quantile (linear interpolation, as numpy.quantile) of `values` within each group 0..len(counts)-1 (`counts`:
     the group sizes, np.bincount(group)); NaN for an empty group."""
-    ordered = values[np.lexsort((values, group))]
+    by_value = np.argsort(values)  # then a stable (radix) sort by group: np.lexsort((values, group))'s values, 6x faster
+    ordered = values[by_value][np.argsort(group[by_value].astype(np.uint16), kind="stable")]
     start = np.cumsum(counts) - counts
     position = start + np.maximum(counts - 1, 0) * q
     low = np.minimum(np.floor(position).astype(np.int64), len(ordered) - 1)
@@ -464,7 +465,24 @@ def _row_quantiles(values: np.ndarray, q: tuple[float, ...]) -> np.ndarray:
     ordered = np.sort(values, axis=1)
     for count in np.unique(held[held > 0]):
         rows = np.flatnonzero(held == count)
-        out[:, rows] = np.quantile(ordered[rows, :count], q, axis=1)
+        out[:, rows] = _sorted_quantiles(ordered[rows, :count].T, np.asarray(q))
+    return out
+
+
+def _sorted_quantiles(ordered: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """np.quantile(ordered, q, axis=0) (method 'linear') of columns already sorted along axis 0, bit for bit: its virtual
+    indices, neighbours and interpolation (numpy.lib._function_base_impl._lerp), without sorting the columns again."""
+    n = len(ordered)
+    virtual = (n - 1) * q
+    previous = np.floor(virtual)
+    above = virtual >= n - 1
+    previous[above] = n - 1
+    following = np.where(above, n - 1, previous + 1).astype(np.int64)
+    gamma = (virtual - np.where(above, -1.0, previous)).reshape(-1, *([1] * (ordered.ndim - 1)))
+    low, high = ordered[previous.astype(np.int64)], ordered[following]
+    step = high - low
+    out = low + step * gamma
+    np.subtract(high, step * (1 - gamma), out=out, where=gamma >= 0.5)
     return out
 
 

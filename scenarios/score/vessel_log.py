@@ -69,12 +69,12 @@ class VesselWatch:
     def period(self, t0: float, t1: float, commands: tuple[float, float] = (np.nan, np.nan)) -> Contact | None:
         """Log the state at t0 and look for contact in (t0, t1]; the contact (also kept in the log) or None."""
         pose = self.trajectory.pose(t0)
-        at_start, at_end = self.clearance.at(self.trajectory.poses(np.array([t0, t1])))
+        (at_start,) = self.clearance.at(pose)
         station, cross, _ = self.route.project(pose[:2, 3])
         nearest = self.world.parts[at_start.part].name if at_start.part >= 0 else ""
         self.log.add(t0, pose, float(station), float(cross), at_start, nearest, commands)
         travel = float(np.max(self.trajectory.speed(t1))) * (t1 - t0)
-        if min(at_start.distance_m, at_end.distance_m) > NEAR_M + travel:
+        if at_start.distance_m > NEAR_M + travel:  # no hull point moves farther than travel within the period (NEAR_M's margin holds the turn)
             return None
         ts = np.linspace(t0, t1, max(int(np.ceil((t1 - t0) / FINE_STEP_S)), 1) + 1)
         for t, c in zip(ts, self.clearance.at(self.trajectory.poses(ts))):

@@ -16,6 +16,7 @@ import sim
 import worlds
 from scenarios.pipeline import files
 from scenarios.pipeline.runner import RunFailed, RunInterrupted
+from scenarios.pipeline.scan_ahead import ScanAhead
 from scenarios.spec.library import validate
 
 SHORT = ["stretch={start_s = 60.0, end_s = 90.0}"]  # canal_lock: walls on both sides, 30 s
@@ -191,17 +192,20 @@ def test_an_estimator_that_raises_is_recorded_and_the_others_go_on(tmp_path, mon
     assert result.metrics["estimators"]["ekf"]["available"] > 0.3 and not result.metrics["estimators"]["ekf"]["failed"]
 
 
-def test_a_simulation_failure_names_the_scan_and_leaves_nothing(tmp_path, monkeypatch):
-    real_scan = sim.HDL32E.scan
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_simulation_failure_names_the_scan_and_leaves_nothing(tmp_path, monkeypatch, workers):
+    # one process casts in sim.HDL32E.scan; two cast ahead in a worker, whose failure ScanAhead.scan raises
+    # (tests/test_scan_ahead.py: the worker's own failure reaches it, word for word)
+    owner, real_scan = (sim.HDL32E, sim.HDL32E.scan) if workers == 1 else (ScanAhead, ScanAhead.scan)
 
-    def failing(self, world, trajectory, t0):
-        if t0 > 61.0:
+    def failing(self, *args):
+        if args[-1] > 61.0:
             raise ValueError("lidar: trajectory gave a NaN pose")
-        return real_scan(self, world, trajectory, t0)
+        return real_scan(self, *args)
 
-    monkeypatch.setattr(sim.HDL32E, "scan", failing)
+    monkeypatch.setattr(owner, "scan", failing)
     with pytest.raises(RunFailed, match=r"scan \d+ at t=61\.\d+ s: lidar: trajectory gave a NaN pose"):
-        scenarios.run(short(), tmp_path / "run", workers=2, report=False)
+        scenarios.run(short(), tmp_path / "run", workers=workers, report=False)
     assert list(tmp_path.iterdir()) == []
 
 

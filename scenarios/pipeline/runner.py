@@ -18,6 +18,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -32,6 +33,7 @@ from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.observer import RunObserver
+from scenarios.pipeline.scan_ahead import ScanAhead
 from scenarios.pipeline.traffic_log import TrafficLog
 from scenarios.score import metrics, units, vessel_log
 from scenarios.score import windows as win
@@ -77,8 +79,9 @@ def run(
 ) -> RunResult:
     """Run `scenario` and write its run directory (default runs/<name>-<UTC time>/).
 
-    workers: processes in use (1: everything in this process; 2, the default: matchers overlap
-    with the simulation). report: also write report.md, report.html and plots/. progress, if
+    workers: cores in use (1: everything in this process; 2, the default: the matchers in a worker
+    process and, in open loop, the LiDAR cast ahead in another (scenarios.pipeline.scan_ahead), so
+    casting, matching and fusion overlap on both cores). report: also write report.md, report.html and plots/. progress, if
     given, is called as progress(t, t_start, t_end, scans) after each event. observer, if given,
     sees the run's world, each scan and fix, and its end (scenarios.pipeline.observer).
     """
@@ -112,16 +115,19 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     traffic_log = TrafficLog(vessel_run.world)
     recorder = stack.recorder()
     setups = matcher_setups(scenario)
-    with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
+    ahead = ScanAhead(scenario, vessel_run.scan_times()) if workers > 1 and vessel_run.loop is None else nullcontext()
+    with ahead, MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()), observer=observer)
         feed.drive(
-            traffic_log.tap(vessel_run.events(feed)),
+            traffic_log.tap(vessel_run.events(feed, ahead.scan if isinstance(ahead, ScanAhead) else None)),
             lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
             (ValueError, RuntimeError, FloatingPointError),
         )
         pool.close()
-        workers_rss = pool.workers_rss_mb
         lanes = pool.lanes
+    workers_rss = pool.workers_rss_mb
+    if isinstance(ahead, ScanAhead):
+        workers_rss += ahead.rss_mb
     rec = recorder.finish([(w.start_s, w.end_s) for w in scenario.gnss.forced_biases])
     wall = time.perf_counter() - wall_start
     t_last = float(rec.scan_t[-1]) + lidar.revolution_s if len(rec.scan_t) else t_start
@@ -138,7 +144,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         "peak_rss_mb": peak_rss_mb() + workers_rss,
         "scans": len(rec.scan_t),
         "fixes": len(rec.fixes.t),
-        "workers": len(lanes),
+        "workers": len(lanes) + isinstance(ahead, ScanAhead),
         "lanes": lanes,
         "failures": rec.failures,
     }

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,8 +40,11 @@ def scan_times(lidar, t_start: float, t_end: float) -> np.ndarray:
     return on_ns_grid(t_start + np.arange(n) * lidar.revolution_s)
 
 
-def events(world, trajectory, lidar, receiver, t_start: float = 0.0, t_end: float | None = None) -> Iterator[ScanEvent | FixEvent]:
-    """Scans and fixes over [t_start, t_end) (default: the whole trajectory) in time order, lazily.
+def events(
+    world, trajectory, lidar, receiver, t_start: float = 0.0, t_end: float | None = None, cast: Callable[[float], Scan] | None = None
+) -> Iterator[ScanEvent | FixEvent]:
+    """Scans and fixes over [t_start, t_end) (default: the whole trajectory) in time order, lazily; `cast(t)`, when given,
+    gives the revolution at t in place of the lidar (scenarios.pipeline.scan_ahead: the same one, cast ahead in a worker).
 
     A scan is stamped with its revolution start; at equal stamps the scan comes first. The
     receiver is asked for fixes at increasing times, as its internal filter requires. Every time is on the
@@ -54,7 +57,7 @@ def events(world, trajectory, lidar, receiver, t_start: float = 0.0, t_end: floa
     fixes = ((float(t), 1, "fix") for t in on_ns_grid(receiver.epochs(t_end, t_start)))
     for t, _, kind in heapq.merge(scans, fixes):
         if kind == "scan":
-            yield ScanEvent(t, lidar.scan(world, trajectory, t))
+            yield ScanEvent(t, lidar.scan(world, trajectory, t) if cast is None else cast(t))
         else:
             yield FixEvent(t, receiver.fix(world, trajectory, t))
 

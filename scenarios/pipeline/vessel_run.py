@@ -3,7 +3,7 @@ or the WAM-V model steered by the autopilot on an estimator's pose (closed loop)
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,6 +11,7 @@ import numpy as np
 from scenarios.pipeline.closed_loop import ClosedLoop, autopiloted, watched
 from scenarios.pipeline.inertial import with_inertial
 from scenarios.pipeline.stream import events as planned_events
+from scenarios.pipeline.stream import scan_times
 from scenarios.score.vessel_log import VesselWatch
 from scenarios.spec.scenario import Scenario
 from sim.autopilot import Autopilot
@@ -19,6 +20,7 @@ from sim.compass import Ahrs, with_heading
 from sim.driven_trajectory import DrivenTrajectory
 from sim.imu import Imu
 from sim.magnetic_compass import MagneticCompass
+from sim.scan import Scan
 from sim.scene import Scene, split
 from sim.traffic import build_traffic
 from sim.trajectory import Trajectory
@@ -65,16 +67,20 @@ class VesselRun:
         loop = ClosedLoop(scene, driven, lidar, receiver, watch, t_start, end_station, t_limit)
         return cls(scenario, scene, driven, watch, lidar, receiver, t_start, t_end, loop)
 
-    def events(self, feed) -> Iterator:
+    def events(self, feed, cast: Callable[[float], Scan] | None = None) -> Iterator:
         """The run's scans and fixes in time order, with the IMU's and the compass's outputs between them when there are
-        such sensors; closed loop steers on `feed`'s estimator (or the truth)."""
-        return with_inertial(self._events(feed), self.trajectory, self.imu, self.compass, self.t_start)
+        such sensors; closed loop steers on `feed`'s estimator (or the truth). Open loop: `cast(t)`, when given, gives the
+        revolution at t (a ScanAhead's)."""
+        return with_inertial(self._events(feed, cast), self.trajectory, self.imu, self.compass, self.t_start)
 
-    def _events(self, feed) -> Iterator:
+    def scan_times(self) -> np.ndarray:
+        """The start times of the run's revolutions in open loop (a closed loop's depend on how it is steered)."""
+        return scan_times(self.lidar, self.t_start, self.t_end)
+
+    def _events(self, feed, cast: Callable[[float], Scan] | None) -> Iterator:
         if self.loop is None:
-            return watched(
-                planned_events(self.world, self.trajectory, self.lidar, self.receiver, self.t_start, self.t_end), self.watch, self.lidar.revolution_s
-            )
+            stream = planned_events(self.world, self.trajectory, self.lidar, self.receiver, self.t_start, self.t_end, cast)
+            return watched(stream, self.watch, self.lidar.revolution_s)
         control = self.scenario.control
         autopilot = Autopilot(self.world.route, control.dynamics, self.scenario.vessel.speed_mps, control.autopilot)
         believed = self.trajectory.pose if control.steer_on == "truth" else (lambda t: feed.pose_of(control.steer_on))

@@ -10,6 +10,7 @@ import pytest
 import scenarios
 from scenarios.pipeline.assembly import assemble
 from scenarios.pipeline.scan_ahead import AHEAD_SCANS, ScanAhead
+from scenarios.pipeline.stream import scan_times
 
 
 def scenario():
@@ -18,7 +19,7 @@ def scenario():
 
 def test_the_worker_casts_the_same_revolutions_as_the_run():
     run = assemble(scenario()).vessel_run
-    times = run.scan_times()[:3]
+    times = scan_times(run.lidar, run.t_start, run.t_end)[:3]
     with ScanAhead(scenario(), times) as ahead:
         for t in times:
             there, here = ahead.scan(float(t)), run.lidar.scan(run.world, run.trajectory, float(t))
@@ -34,7 +35,8 @@ def test_a_failed_revolution_raises_the_workers_reason_and_asking_out_of_order_i
 
 
 def test_stopping_before_the_last_revolution_ends_the_worker():
-    times = assemble(scenario()).vessel_run.scan_times()
+    run = assemble(scenario()).vessel_run
+    times = scan_times(run.lidar, run.t_start, run.t_end)
     assert len(times) > 2 * AHEAD_SCANS  # it is still casting (or waiting on a full queue) when closed
     with ScanAhead(scenario(), times) as ahead:
         ahead.scan(float(times[0]))

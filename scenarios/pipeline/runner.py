@@ -34,6 +34,7 @@ from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.observer import RunObserver
 from scenarios.pipeline.scan_ahead import ScanAhead
+from scenarios.pipeline.stream import scan_times
 from scenarios.pipeline.traffic_log import TrafficLog
 from scenarios.score import metrics, units, vessel_log
 from scenarios.score import windows as win
@@ -115,19 +116,17 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     traffic_log = TrafficLog(vessel_run.world)
     recorder = stack.recorder()
     setups = matcher_setups(scenario)
-    ahead = ScanAhead(scenario, vessel_run.scan_times()) if workers > 1 and vessel_run.loop is None else nullcontext()
-    with ahead, MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
+    ahead = ScanAhead(scenario, scan_times(lidar, t_start, t_end)) if workers > 1 and vessel_run.loop is None else None
+    with ahead or nullcontext(), MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()), observer=observer)
         feed.drive(
-            traffic_log.tap(vessel_run.events(feed, ahead.scan if isinstance(ahead, ScanAhead) else None)),
+            traffic_log.tap(vessel_run.events(feed, ahead.scan if ahead else None)),
             lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
             (ValueError, RuntimeError, FloatingPointError),
         )
         pool.close()
         lanes = pool.lanes
-    workers_rss = pool.workers_rss_mb
-    if isinstance(ahead, ScanAhead):
-        workers_rss += ahead.rss_mb
+    workers_rss = pool.workers_rss_mb + (ahead.rss_mb if ahead else 0.0)
     rec = recorder.finish([(w.start_s, w.end_s) for w in scenario.gnss.forced_biases])
     wall = time.perf_counter() - wall_start
     t_last = float(rec.scan_t[-1]) + lidar.revolution_s if len(rec.scan_t) else t_start
@@ -144,7 +143,7 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         "peak_rss_mb": peak_rss_mb() + workers_rss,
         "scans": len(rec.scan_t),
         "fixes": len(rec.fixes.t),
-        "workers": len(lanes) + isinstance(ahead, ScanAhead),
+        "workers": len(lanes) + (ahead is not None),
         "lanes": lanes,
         "failures": rec.failures,
     }

@@ -11,7 +11,6 @@ import numpy as np
 from scenarios.pipeline.closed_loop import ClosedLoop, autopiloted, watched
 from scenarios.pipeline.inertial import with_inertial
 from scenarios.pipeline.stream import events as planned_events
-from scenarios.pipeline.stream import scan_times
 from scenarios.score.vessel_log import VesselWatch
 from scenarios.spec.scenario import Scenario
 from sim.autopilot import Autopilot
@@ -72,10 +71,6 @@ class VesselRun:
         such sensors; closed loop steers on `feed`'s estimator (or the truth). Open loop: `cast(t)`, when given, gives the
         revolution at t (a ScanAhead's)."""
         return with_inertial(self._events(feed, cast), self.trajectory, self.imu, self.compass, self.t_start)
-
-    def scan_times(self) -> np.ndarray:
-        """The start times of the run's revolutions in open loop (a closed loop's depend on how it is steered)."""
-        return scan_times(self.lidar, self.t_start, self.t_end)
 
     def _events(self, feed, cast: Callable[[float], Scan] | None) -> Iterator:
         if self.loop is None:

@@ -1,9 +1,9 @@
 """The streaming loop of a run: scans and fixes in time order through the scenario's matchers and estimators into a Recorder.
 
 `scenarios.run` feeds it simulated events, `scenarios.replay` recorded ones. Each scan goes to
-every matcher (a MatcherPool, so the next scan can be read or simulated while one is matched,
-LOOKAHEAD_SCANS ahead), then in time order each estimator gets `add_match(stamp, result)` of its own matcher and gives its pose; each
-fix goes to every estimator's `add_fix`, which returns the monitor's verdict. A component that
+every matcher (a MatcherPool, so the next scans can be read or simulated while one is matched,
+LOOKAHEAD_SCANS or PIPELINED_SCANS ahead), then in time order each estimator gets `add_match(stamp, result)` of its
+own matcher and gives its pose; each fix goes to every estimator's `add_fix`, which returns the monitor's verdict. A component that
 raises, or answers with something else than a 4x4 pose or a Verdict, is recorded as failed from
 that input on and the rest goes on. A scan the recording could not give (BadScan) is a recorded
 failure too. An observer (the live view), when given, is told of each scan and fix as it is recorded.
@@ -28,7 +28,12 @@ from scenarios.score.record import Recorder, nan_pose
 from scenarios.spec.scenario import Scenario
 
 LOOKAHEAD_SCANS = 1
-"""Scans read or simulated ahead of the one being matched (the overlap of reading or simulation and matching)."""
+"""Scans read or simulated ahead of the one being matched (the overlap of reading or simulation and matching) where the
+next input depends on the estimators' state: a closed loop steers on it, an export frame waits for it."""
+PIPELINED_SCANS = 4
+"""Scans ahead where the input does not depend on the estimators (a planned path, a recording): per-scan costs vary in
+the run process and in the matchers' worker, unevenly, and a deeper queue lets one catch up while the other is slow
+instead of waiting scan by scan (the same inputs in the same order: the outputs do not change)."""
 PLANAR_AXES = [0, 1, 5]
 """Rows and columns of x, y and yaw in a 6x6 pose covariance [x, y, z, roll, pitch, yaw] (ROS geometry_msgs order)."""
 
@@ -63,11 +68,14 @@ class Feed:
         log_fix: Callable[[object], None] | None = None,
         on_scan: Callable[[float, dict], None] | None = None,
         observer: RunObserver | None = None,
+        lookahead_scans: int = LOOKAHEAD_SCANS,
     ) -> None:
         """log_fix(event), when given, is called with each fix event once the estimators have it (e.g. to write the NMEA log);
         on_scan(stamp, results) once every estimator has a scan and before any later input (e.g. to read their poses and
         covariances), with the matchers' results of that scan by id;
-        observer, when given, with each scan and fix as they are recorded (the live view)."""
+        observer, when given, with each scan and fix as they are recorded (the live view);
+        lookahead_scans: scans submitted to the matchers before the oldest is fused (PIPELINED_SCANS when nothing fed
+        back from the estimators shapes the input)."""
         self.pool, self.recorder, self.base_pose = pool, recorder, base_pose
         self.log_fix, self.on_scan, self.observer = log_fix, on_scan, observer
         self.sensors = {e.id: set(e.sensors_used) for e in scenario.estimators}
@@ -75,6 +83,7 @@ class Feed:
         self.refs = {c.id: c.ref for c in [*scenario.matchers, *scenario.estimators]}  # kind or plugin path: failures name it
         self.estimators, self.dead = build_estimators(scenario, recorder, t_start)
         self.queue: deque = deque()
+        self.lookahead_scans = lookahead_scans
         self.scans = 0
 
     def pose_of(self, estimator_id: str) -> np.ndarray:
@@ -109,7 +118,7 @@ class Feed:
         if isinstance(event, ScanEvent):
             self.pool.submit(event.scan)
             self.scans += 1
-        self._drain(LOOKAHEAD_SCANS)
+        self._drain(self.lookahead_scans)
 
     def finish(self) -> None:
         """Process every pending event."""

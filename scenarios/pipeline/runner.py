@@ -30,7 +30,7 @@ from riverbench.provenance import peak_rss_mb
 from riverbench.unixtime import unix_ns
 from scenarios.pipeline import files
 from scenarios.pipeline.assembly import assemble, matcher_setups
-from scenarios.pipeline.feed import Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
+from scenarios.pipeline.feed import LOOKAHEAD_SCANS, PIPELINED_SCANS, Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.observer import RunObserver
 from scenarios.pipeline.scan_ahead import ScanAhead
@@ -118,7 +118,17 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     setups = matcher_setups(scenario)
     ahead = ScanAhead(scenario, scan_times(lidar, t_start, t_end)) if workers > 1 and vessel_run.loop is None else None
     with ahead or nullcontext(), MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        feed = Feed(scenario, pool, recorder, trajectory.pose, t_start, nmea_writer(nmea, lambda event: event.fix.nmea()), observer=observer)
+        lookahead = LOOKAHEAD_SCANS if vessel_run.loop is not None else PIPELINED_SCANS  # a closed loop steers on the fused pose
+        feed = Feed(
+            scenario,
+            pool,
+            recorder,
+            trajectory.pose,
+            t_start,
+            nmea_writer(nmea, lambda event: event.fix.nmea()),
+            observer=observer,
+            lookahead_scans=lookahead,
+        )
         feed.drive(
             traffic_log.tap(vessel_run.events(feed, ahead.scan if ahead else None)),
             lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),

@@ -41,7 +41,7 @@ from scenarios.export import check_out, staged_dir
 from scenarios.pipeline import files
 from scenarios.pipeline.assembly import matcher_setups
 from scenarios.pipeline.assembly import recorder as make_recorder
-from scenarios.pipeline.feed import Feed, nmea_writer
+from scenarios.pipeline.feed import PIPELINED_SCANS, Feed, nmea_writer
 from scenarios.pipeline.matcher_pool import MatcherPool
 from scenarios.pipeline.stream import ScanEvent
 from scenarios.replay import anchor, bag, capture, gates, nmea_log, pcap
@@ -181,7 +181,7 @@ def replay_into(
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         wall_start = time.perf_counter()
         log = nmea_writer(nmea, lambda event: list(event.sentences))
-        feed = Feed(fed, pool, recorder, lambda stamp: start, recording.t_start, log, on_scan=on_scan)
+        feed = Feed(fed, pool, recorder, lambda stamp: start, recording.t_start, log, on_scan=on_scan, lookahead_scans=PIPELINED_SCANS)
         headings.sd_of = lambda eid: anchor.yaw_sd_deg(feed.cov_of(eid))
         feed.drive(
             events,

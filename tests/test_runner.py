@@ -15,6 +15,7 @@ import scenarios
 import sim
 import worlds
 from scenarios.pipeline import files
+from scenarios.pipeline.feed import LOOKAHEAD_SCANS, PIPELINED_SCANS
 from scenarios.pipeline.runner import RunFailed, RunInterrupted
 from scenarios.pipeline.scan_ahead import ScanAhead
 from scenarios.spec.library import validate
@@ -147,6 +148,16 @@ def test_same_scenario_same_outputs_with_one_or_two_processes_and_from_the_resol
     resolved = validate(tomllib.loads((short_run.out_dir / "scenario.toml").read_text()))
     assert resolved.hash == short_run.scenario.hash
     again = scenarios.run(resolved, tmp_path / "again", workers=1, report=False)
+    for name in ["groundtruth.tum", "ekf.tum", "pf.tum", "gicp.tum", "gps.csv", "gps.nmea", "windows.csv"]:
+        assert (again.out_dir / name).read_bytes() == (short_run.out_dir / name).read_bytes(), name
+
+
+def test_fusing_further_behind_the_matchers_changes_no_output(short_run, tmp_path, monkeypatch):
+    # an open-loop run keeps PIPELINED_SCANS scans with the matchers before fusing the oldest; one ahead (as a closed loop
+    # does) feeds the estimators the same inputs in the same order
+    assert PIPELINED_SCANS > LOOKAHEAD_SCANS
+    monkeypatch.setattr("scenarios.pipeline.runner.PIPELINED_SCANS", LOOKAHEAD_SCANS)
+    again = scenarios.run(short_run.scenario, tmp_path / "one_ahead", workers=2, report=False)
     for name in ["groundtruth.tum", "ekf.tum", "pf.tum", "gicp.tum", "gps.csv", "gps.nmea", "windows.csv"]:
         assert (again.out_dir / name).read_bytes() == (short_run.out_dir / name).read_bytes(), name
 

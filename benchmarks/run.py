@@ -1,14 +1,15 @@
 """Scenario run speed and memory: real-time factor and peak memory of `riverbench run` on
 charles_river stretches of several lengths, for the default stack (gicp + the four estimators), with all
-four matchers (pcl6d, bev3dof, kiss_icp, gicp; the estimators on gicp), and with the IMU and compass
-(the default stack plus the MTi-630 IMU, its compass and an ekf fed both).
+four matchers (pcl6d, bev3dof, kiss_icp, gicp; the estimators on gicp), and with the MTi-630 IMU and its
+compass: `inertial` adds an ekf fed both beside the default four (what a comparison of the two runs), `imu_ekf`
+feeds them to the default ekf itself.
 
 Each configuration runs in its own process (`riverbench run ... --no-report --quiet`), so its peak
 memory is its own; the figures come from the run's metrics.json (wall time from world load to the
-last file, peak RSS of the run's processes summed). Targets: default and inertial stacks >= 5x real time, all
+last file, peak RSS of the run's processes summed). Targets: default, inertial and imu_ekf stacks >= 5x real time, all
 four matchers >= 1.5x, peak memory within 10% between 10 and 30 minutes (memory flat in length).
 
-    .venv/bin/python benchmarks/run.py [--minutes 5 10 30] [--stacks default all4 inertial] [--workers 2]
+    .venv/bin/python benchmarks/run.py [--minutes 5 10 30] [--stacks default all4 inertial imu_ekf] [--workers 2]
 """
 
 from __future__ import annotations
@@ -20,20 +21,38 @@ import sys
 import tempfile
 from pathlib import Path
 
+from scenarios.spec.scenario import default_lists
+
 ALL_FOUR = (
     'matchers=[{id = "gicp", kind = "gicp"}, {id = "kiss_icp", kind = "kiss_icp"}, '
     '{id = "bev3dof", kind = "bev3dof"}, {id = "pcl6d", kind = "pcl6d"}]'
 )
-INERTIAL = [  # the default stack plus issue 23's: the industrial IMU and its compass, an ekf fed both beside the others
-    'estimators=[{id = "gps_only", kind = "gps_only", monitor = "none"}, '
-    '{id = "hdop_switch", kind = "hdop_switch", matcher = "gicp", monitor = "hdop"}, '
-    '{id = "ekf", kind = "ekf", matcher = "gicp", monitor = "combined_cn0"}, {id = "pf", kind = "pf", matcher = "gicp", monitor = "none"}, '
-    '{id = "ekf_inertial", kind = "ekf", matcher = "gicp", monitor = "combined_cn0", sensors = ["gnss", "odometry", "imu", "compass"]}]',
-    'imu={preset = "mti630"}',
-    "compass={}",
-]
-STACKS = {"default": [], "all4": [ALL_FOUR], "inertial": INERTIAL}
-TARGET = {"default": 5.0, "all4": 1.5, "inertial": 5.0}
+IMU_SENSORS = ["gnss", "odometry", "imu", "compass"]
+IMU = ['imu={preset = "mti630"}', "compass={}"]  # issue 23's industrial IMU and its compass
+
+
+def inline(value) -> str:
+    """`value` as a TOML inline value, the syntax of `--set key=value`."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {inline(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(inline(v) for v in value) + "]"
+    return json.dumps(value)
+
+
+def imu_stack(beside: bool) -> list[str]:
+    """The default estimators with an ekf fed the IMU and compass: a fifth one beside the plain ekf (beside=True, to
+    compare the two in one run) or the default ekf itself."""
+    estimators = default_lists()["estimators"]
+    if beside:
+        estimators = [*estimators, {"id": "ekf_inertial", "kind": "ekf", "matcher": "gicp", "sensors": IMU_SENSORS}]
+    else:
+        estimators = [e | {"sensors": IMU_SENSORS} if e["id"] == "ekf" else e for e in estimators]
+    return [f"estimators={inline(estimators)}", *IMU]
+
+
+STACKS = {"default": [], "all4": [ALL_FOUR], "inertial": imu_stack(beside=True), "imu_ekf": imu_stack(beside=False)}
+TARGET = {"default": 5.0, "all4": 1.5, "inertial": 5.0, "imu_ekf": 5.0}
 
 
 def measure(minutes: float, stack: str, workers: int, scenario: str) -> dict:

@@ -2,11 +2,12 @@
 
 `scenarios.run` feeds it simulated events, `scenarios.replay` recorded ones. Each scan goes to
 every matcher (a MatcherPool, so the next scans can be read or simulated while one is matched,
-LOOKAHEAD_SCANS or PIPELINED_SCANS ahead), then in time order each estimator gets `add_match(stamp, result)` of its
-own matcher and gives its pose; each fix goes to every estimator's `add_fix`, which returns the monitor's verdict. A component that
-raises, or answers with something else than a 4x4 pose or a Verdict, is recorded as failed from
-that input on and the rest goes on. A scan the recording could not give (BadScan) is a recorded
-failure too. An observer (the live view), when given, is told of each scan and fix as it is recorded.
+LOOKAHEAD_SCANS or PIPELINED_SCANS ahead), then in time order each estimator gets
+`add_match(stamp, result)` of its own matcher and gives its pose; each fix goes to every
+estimator's `add_fix`, which returns the monitor's verdict. A component that raises, or answers
+with something else than a 4x4 pose or a Verdict, is recorded as failed from that input on and
+the rest goes on. A scan the recording could not give (BadScan) is a recorded failure too. An
+observer (the live view), when given, is told of each scan and fix as it is recorded.
 """
 
 from __future__ import annotations

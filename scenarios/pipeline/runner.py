@@ -116,9 +116,10 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     traffic_log = TrafficLog(vessel_run.world)
     recorder = stack.recorder()
     setups = matcher_setups(scenario)
-    ahead = ScanAhead(scenario, scan_times(lidar, t_start, t_end)) if workers > 1 and vessel_run.loop is None else None
+    open_loop = vessel_run.loop is None  # else the path, hence the next scan, depends on the fused pose
+    ahead = ScanAhead(scenario, scan_times(lidar, t_start, t_end)) if workers > 1 and open_loop else None
+    lookahead = PIPELINED_SCANS if open_loop else LOOKAHEAD_SCANS
     with ahead or nullcontext(), MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
-        lookahead = LOOKAHEAD_SCANS if vessel_run.loop is not None else PIPELINED_SCANS  # a closed loop steers on the fused pose
         feed = Feed(
             scenario,
             pool,

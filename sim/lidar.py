@@ -283,6 +283,18 @@ class HDL32E:
         part = world.face_part[face[np.arange(len(rays)), strongest]]
         return rays[keep], mixed_range[keep], mean_power[keep].astype(np.float32), part[keep]
 
+    def dry_hits(self, world: World | Scene, trajectory, t0: float) -> int:
+        """Rays of the revolution at t0 that meet a surface other than water within the reported range and clear the
+        vessel: what a perfect detector would report, the bound the static world's geometry sets on `scan`'s count
+        (mixed pixels aside)."""
+        cfg = self.config
+        static, _ = split(world)
+        hit = static.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(self.rays(trajectory, t0)))
+        t_hit = hit["t_hit"].numpy()
+        reached = (t_hit >= cfg.min_range_m) & (t_hit <= cfg.max_range_m) & self._visible(trajectory)
+        face = np.where(reached, hit["primitive_ids"].numpy(), 0)
+        return int((reached & ~static.face_is_water[face]).sum())
+
     def rays(self, trajectory, t0: float) -> np.ndarray:
         """(n_firings * 32, 6) float32 world rays (origin, unit direction) of the revolution at t0."""
         return self._rays(self._poses(trajectory, t0)[1])

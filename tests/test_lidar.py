@@ -159,6 +159,18 @@ def test_beyond_max_range_nothing_returns():
     assert 0 < len(short) < len(near)
 
 
+def test_dry_hits_bound_the_points_and_water_gives_none(wall):
+    world, traj = wall
+    lidar = HDL32E(**EXACT)
+    bound = lidar.dry_hits(world, traj, 5.0)
+    labels = lidar.scan(world, traj, 5.0).points["label"]
+    dry = int((~world.part_is_water[labels]).sum())
+    assert 0.97 * bound <= dry <= bound  # the same rays; only detection (1 - exp(-k power) < 1) loses some
+    water = open_water_world()
+    assert lidar.dry_hits(water, Trajectory(water), 1.0) == 0
+    assert HDL32E(**EXACT, max_range_m=12.0).dry_hits(world, traj, 5.0) < bound
+
+
 def test_scheduled_blinding_removes_most_points(wall):
     world, traj = wall
     lidar = HDL32E(blinding=[(4.95, 5.05)])

@@ -9,7 +9,7 @@ memory is its own; the figures come from the run's metrics.json (wall time from 
 last file, peak RSS of the run's processes summed). Targets: default, inertial and imu_ekf stacks >= 5x real time, all
 four matchers >= 1.5x, peak memory within 10% between 10 and 30 minutes (memory flat in length).
 
-    .venv/bin/python benchmarks/run.py [--minutes 5 10 30] [--stacks default all4 inertial imu_ekf] [--workers 2]
+    .venv/bin/python benchmarks/run.py [--minutes 5 10 30] [--stacks default all4 inertial imu_ekf] [--workers 2] [--rounds 3]
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 from scenarios.spec.scenario import default_lists
 
@@ -76,22 +78,43 @@ def main() -> None:
     parser.add_argument("--stacks", nargs="+", default=list(STACKS), choices=list(STACKS))
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--scenario", default="charles_river")
+    parser.add_argument(
+        "--rounds", type=int, default=1, help="runs of every configuration, interleaved round by round (medians the machine's drift cannot bias)"
+    )
     args = parser.parse_args()
-    print(f"{args.scenario} from t=0, workers={args.workers}")
-    print(f"{'stack':>8} {'minutes':>7} {'wall s':>7} {'x real time':>11} {'target':>6} {'peak MB':>8}  matcher Hz (median)")
-    peaks: dict[str, dict[float, float]] = {}
+    print(f"{args.scenario} from t=0, workers={args.workers}, {args.rounds} round(s)")
+    print(f"{'round':>5} {'stack':>8} {'minutes':>7} {'wall s':>7} {'x real time':>11} {'target':>6} {'peak MB':>8}  matcher Hz (median)")
+    runs: dict[tuple[str, float], list[dict]] = {}
+    for round_no in range(1, args.rounds + 1):
+        for stack in args.stacks:
+            for minutes in args.minutes:
+                r = measure(minutes, stack, args.workers, args.scenario)
+                run = r["run"]
+                runs.setdefault((stack, minutes), []).append(run)
+                hz = ", ".join(f"{m} {v:.0f}" for m, v in r["hz"].items() if v is not None)
+                met = "met" if run["realtime_factor"] >= TARGET[stack] else "MISSED"
+                factor, wall, peak = run["realtime_factor"], run["wall_s"], run["peak_rss_mb"]
+                print(f"{round_no:5d} {stack:>8} {minutes:7g} {wall:7.1f} {factor:11.2f} {met:>6} {peak:8.0f}  {hz}", flush=True)
+    if args.rounds > 1:
+        summarise(runs)
     for stack in args.stacks:
-        for minutes in args.minutes:
-            r = measure(minutes, stack, args.workers, args.scenario)
-            run = r["run"]
-            peaks.setdefault(stack, {})[minutes] = run["peak_rss_mb"]
-            hz = ", ".join(f"{m} {v:.0f}" for m, v in r["hz"].items() if v is not None)
-            met = "met" if run["realtime_factor"] >= TARGET[stack] else "MISSED"
-            print(f"{stack:>8} {minutes:7g} {run['wall_s']:7.1f} {run['realtime_factor']:11.2f} {met:>6} {run['peak_rss_mb']:8.0f}  {hz}", flush=True)
-    for stack, by_length in peaks.items():
-        if 10.0 in by_length and 30.0 in by_length:
-            growth = by_length[30.0] / by_length[10.0] - 1.0
+        if (stack, 10.0) in runs and (stack, 30.0) in runs:
+            peak = {m: np.median([r["peak_rss_mb"] for r in runs[stack, m]]) for m in (10.0, 30.0)}
+            growth = peak[30.0] / peak[10.0] - 1.0
             print(f"{stack}: peak memory 30 min vs 10 min {growth:+.1%} ({'flat' if abs(growth) <= 0.10 else 'GROWS'})")
+
+
+def summarise(runs: dict[tuple[str, float], list[dict]]) -> None:
+    """Median real-time factor of each configuration over the rounds, and its wall time against the default stack's in
+    the same rounds (median of the per-round ratios: what the stack costs beyond the default, whatever the machine's speed)."""
+    print(f"{'stack':>8} {'minutes':>7} {'median x':>8} {'min':>5} {'max':>5} {'target':>6}  wall / default's (median of rounds)")
+    for (stack, minutes), rs in runs.items():
+        factors = [r["realtime_factor"] for r in rs]
+        median = float(np.median(factors))
+        default = runs.get(("default", minutes))
+        ratio = f"{np.median([r['wall_s'] / d['wall_s'] for r, d in zip(rs, default, strict=True)]):.3f}" if default and stack != "default" else ""
+        met = "met" if median >= TARGET[stack] else "MISSED"
+        print(f"{stack:>8} {minutes:7g} {median:8.2f} {min(factors):5.2f} {max(factors):5.2f} {met:>6}  {ratio}")
 
 
 if __name__ == "__main__":

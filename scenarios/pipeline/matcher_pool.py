@@ -29,7 +29,9 @@ from sim.scan import Scan
 COST_MS = {"pcl6d": 8.0, "gicp": 5.0, "kiss_icp": 3.0, "bev3dof": 1.5}
 """Rough median ms per charles_river scan (benchmarks/matchers.py), for placing matchers on lanes."""
 CALLER_BASE_MS = 10.0
-"""What the calling lane already spends per scan: ray casting the revolution, the fixes, the estimators."""
+"""What the calling lane already spends per scan: the fixes and the estimators (8-10 ms a charles_river scan in a
+5-minute run's profile; an open-loop run casts its revolutions ahead in another process, a closed loop casts them here
+and spends about 12 ms more, which this does not count)."""
 
 
 @dataclass(frozen=True)

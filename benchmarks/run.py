@@ -82,6 +82,8 @@ def main() -> None:
         "--rounds", type=int, default=1, help="runs of every configuration, interleaved round by round (medians the machine's drift cannot bias)"
     )
     args = parser.parse_args()
+    if args.rounds < 1:
+        parser.error(f"--rounds must be at least 1, got {args.rounds}")
     print(f"{args.scenario} from t=0, workers={args.workers}, {args.rounds} round(s)")
     print(f"{'round':>5} {'stack':>8} {'minutes':>7} {'wall s':>7} {'x real time':>11} {'target':>6} {'peak MB':>8}  matcher Hz (median)")
     runs: dict[tuple[str, float], list[dict]] = {}

@@ -1,5 +1,6 @@
 """sim.nmea.read on real receivers' logs (tests/data/nmea, see its NOTICE.md): every sentence pynmea2 reads (strict:
-with a matching checksum) is read, with the same values; garbage and truncated lines are counted, never raised."""
+with a matching checksum; without one, as its default mode reads it, where NMEA 0183 allows none) is read, with the same
+values; garbage and truncated lines are counted, never raised."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from hypothesis import strategies as st
 
 from sim.nmea import checksum, systems
 from sim.nmea.epochs import Splitter, Tally, assemble
-from sim.nmea.read import KINDS, REASONS, Skipped, kind, read
+from sim.nmea.read import CHECKSUM_MANDATORY, KINDS, MIN_FIELDS, REASONS, Skipped, has_checksum, kind, read
 
 DATA = Path(__file__).parent / "data" / "nmea"
 LOGS = sorted(DATA.rglob("*.log"))
@@ -136,12 +137,17 @@ def pynmea2_knot() -> float:
 
 
 def pynmea2_reads(line: str):
-    """pynmea2's strict reading of a line (None when it refuses it or it is not a talker sentence of a type we read)."""
+    """pynmea2's reading of a line (None when it refuses it or it is not a talker sentence of a type we read): strict with
+    a checksum; without one its default reading, where NMEA 0183 allows no checksum (not RMA, RMB, RMC) and the sentence
+    has the fields of its type (a truncated line has fewer: pynmea2 would read it too, we do not)."""
     try:
-        msg = pynmea2.parse(line, check=True)
+        msg = pynmea2.parse(line, check=has_checksum(line))
     except pynmea2.ParseError:
         return None
-    return msg if type(msg).__name__ in KINDS else None
+    name = type(msg).__name__
+    if not has_checksum(line) and (name in CHECKSUM_MANDATORY or len(msg.data) < MIN_FIELDS.get(name, 0)):
+        return None
+    return msg if name in KINDS else None
 
 
 @pytest.mark.parametrize("path", LOGS, ids=[p.name for p in LOGS])
@@ -177,6 +183,20 @@ def test_the_logs_hold_what_the_parser_was_asked_to_read():
             talkers.add(rec.talker)
     assert kinds == set(KINDS)
     assert {"GP", "GN", "GL", "GA", "GB", "BD"} <= talkers
+
+
+def test_sentences_without_a_checksum_are_read_where_nmea_0183_allows_it():
+    """gpsd's hp58534a.log (an HP 58534A timing receiver) writes no checksum at all: its GGA, ZDA, GSV and VTG are read and
+    counted as such; an RMC without one (its checksum is mandatory) and a GGA cut short are not."""
+    epochs, tally = epochs_of(DATA / "gpsd" / "hp58534a.log")
+    assert tally.read == {"GGA": 2, "ZDA": 1, "GSV": 6, "VTG": 2} and tally.unchecked == 11 and "without a checksum" in tally.summary()
+    assert [e.has_fix for e in epochs] == [True, True] and [e.seconds_of_day for e in epochs] == [80689.0, 80690.0]
+    gga = "$GPGGA,222449,3349.0337,S,01843.9282,E,1,07,02.31,000115.4,M,0033.3,M,,"
+    assert read(gga).lat == pytest.approx(-(33 + 49.0337 / 60), abs=1e-12)
+    for line in ("$GPRMC,222449,A,3349.0337,S,01843.9282,E,0.0,318.0,251010,,", gga[:40]):
+        with pytest.raises(Skipped) as why:
+            read(line)
+        assert why.value.reason == "no checksum"
 
 
 def test_two_digit_years_pivot_as_posix():

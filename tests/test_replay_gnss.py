@@ -7,6 +7,7 @@ files are one line, exit 2, nothing written."""
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pymap3d
+import pynmea2
 import pytest
 from rosbags.rosbag2 import Writer
 
@@ -227,3 +229,35 @@ def test_tally_summary_names_every_reason():
     tally.read["GGA"] += 2
     tally.skipped["bad checksum"] += 1
     assert tally.summary() == "read 2 sentences (GGA 2); skipped 1 lines (1 bad checksum)"
+
+
+def test_a_log_without_checksums_replays_with_pynmea2s_fixes(tmp_path):
+    """gpsd's hp58534a.log writes no checksum (NMEA 0183 allows it): it replays (exit 0), its fixes are pynmea2's."""
+    log = DATA / "gpsd" / "hp58534a.log"
+    done = cli(str(log), "--scenario", SCENARIO, "--out", "run", "--quiet", "--no-report", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    said = " ".join(done.stdout.split())  # rich wraps at the terminal width
+    assert "11 of them without a checksum" in said and "replayed 2 fixes" in said
+    theirs = [pynmea2.parse(line) for line in log.read_text().splitlines() if line.startswith("$GPGGA")]
+    fixes = read_csv(tmp_path / "run" / "gps.csv")  # degrees to 9 decimals
+    assert list(zip(fixes["lat"], fixes["lon"])) == [pytest.approx((m.latitude, m.longitude), abs=1e-9) for m in theirs]
+    recording = json.loads((tmp_path / "run" / "metrics.json").read_text())["run"]["recording"]["nmea"]
+    assert recording["read_without_checksum"] == 11
+
+
+def test_the_clock_is_built_from_valid_fixes_only(tmp_path):
+    """mtk-3301.log's receiver reports 1980 dates until its first fix in 2008: those epochs are set aside and counted, and
+    the replay spans the log's real seconds; an epoch whose date jumps a day or more (a reset receiver) is set aside too."""
+    result = replay(DATA / "gpsd" / "mtk-3301.log", SCENARIO, tmp_path / "mtk", report=False)
+    nmea = result.metrics["run"]["recording"]["nmea"]
+    assert nmea["before_first_fix"] == 7 and nmea["with_fix"] == 4 and nmea["clock_jumps"] == 0
+    assert result.metrics["run"]["duration_s"] == pytest.approx(3.0)
+    stamps = [ns for ns, _ in nmea_log.stamped(DATA / "gpsd" / "mtk-3301.log", datetime(2020, 1, 1).date(), nmea_log.LogStats())]
+    assert datetime.fromtimestamp(stamps[0] / 1e9, UTC).date() == datetime(2008, 8, 23).date()
+    lines = RTK.read_text().splitlines()
+    reset = [line.replace(",200420,", ",060180,") for line in lines[40:42]]  # one epoch's RMC dated the GPS epoch's week
+    reset = [line.split("*")[0] + "*" + checksum(line.split("*")[0][1:]) for line in reset]
+    (tmp_path / "reset.nmea").write_text("\n".join(lines[:40] + reset + lines[42:]) + "\n")
+    stats = nmea_log.LogStats()
+    kept = list(nmea_log.stamped(tmp_path / "reset.nmea", datetime(2020, 1, 1).date(), stats))
+    assert stats.clock_jumps == 1 and len(kept) == 119 and (kept[-1][0] - kept[0][0]) / 1e9 == pytest.approx(59.5)

@@ -2,13 +2,18 @@
 
 Lines are read and cut into epochs by sim.nmea (scenarios.replay.fixes for the fix of each); blank
 lines and '#' comments are passed over; every other line that is not read is counted (Tally) and
-the replay reports the count. Each epoch is stamped with its own UTC time: its time of day on its
-date (RMC's, else ZDA's); an epoch without a date takes the latest date before it (the log's first
-date before the first one), a day later when its time of day falls more than 12 h below the
-previous epoch's (midnight passed); a log without any date takes the scenario's UTC epoch's date.
-An epoch with no time at all (a receiver without a fix may leave it empty) takes the stamp of the
-epoch before it (of the first timed epoch when it comes first). An epoch stamped before the one
-before it (a receiver restart) is left out and counted.
+the replay reports the count. The log's clock is built from its valid fixes only: a receiver that
+has no fix yet reports whatever its clock holds (the MTK-3301 of gpsd's mtk-3301.log writes
+1980-01-05, the GPS epoch, until its first fix in 2008), so every epoch before the first one with a
+fix and a time of day is set aside and counted, never stamped. From there each epoch is stamped with
+its own UTC time: its time of day on its date (RMC's, else ZDA's); an epoch without a date takes the
+latest date before it (the first date from the first fix on, before it appears), a day later when
+its time of day falls more than 12 h below the previous epoch's (midnight passed); a log without any
+date takes the scenario's UTC epoch's date. An epoch with no time at all (a receiver without a fix
+may leave it empty) takes the stamp of the epoch before it. An epoch that jumps more than a day from
+the one before it, back or forward (a receiver reset to its default date), is set aside and counted,
+and its date is not carried; one stamped less than a day before the one before it (a receiver
+restart) is left out and counted as out of time order.
 
 A file is an NMEA log when its name ends in .nmea, or when it is a plain file (not a bag) whose
 first lines hold a sentence. Alone it is a GNSS-only recording; attached to a capture or a bag
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+import itertools
 import math
 import re
 from collections.abc import Iterator
@@ -32,6 +38,8 @@ from sim.nmea.epochs import HALF_DAY_S, Epoch, Splitter, Tally, assemble
 SUFFIXES = (".nmea", ".nmea0183")
 BAG_SUFFIXES = (".bag", ".mcap", ".db3")
 SNIFF_BYTES = 65_536
+DAY_NS = 86_400 * 10**9
+"""A stamp this far from the one before it is a receiver's clock reset, not time passing (module docstring)."""
 _SENTENCE = re.compile(rb"^\s*\$[A-Z]{2}[A-Z0-9]{3},", re.MULTILINE)
 
 
@@ -51,17 +59,21 @@ class Clock:
     def __init__(self, first_date: date) -> None:
         self.day = first_date
         self.previous: float | None = None
+        self._pending = first_date
 
     def utc(self, epoch: Epoch) -> datetime | None:
-        """The epoch's UTC time (None when it has no time of day)."""
+        """The epoch's UTC time (None when it has no time of day); keep() carries its date on."""
+        self._pending = self.day
         if epoch.date is not None:
-            self.day = epoch.date
+            self._pending = epoch.date
         elif epoch.seconds_of_day is not None and self.previous is not None and epoch.seconds_of_day < self.previous - HALF_DAY_S:
-            self.day += timedelta(days=1)
-        if epoch.seconds_of_day is None:
-            return None
-        self.previous = epoch.seconds_of_day
-        return epoch.utc(self.day)
+            self._pending += timedelta(days=1)
+        return epoch.utc(self._pending)
+
+    def keep(self, epoch: Epoch) -> None:
+        """Carry the date and time of day of the epoch last given to utc() on (it was kept; one set aside leaves both)."""
+        if epoch.seconds_of_day is not None:
+            self.day, self.previous = self._pending, epoch.seconds_of_day
 
 
 def epochs(path: Path, tally: Tally) -> Iterator[Epoch]:
@@ -79,22 +91,26 @@ def epochs(path: Path, tally: Tally) -> Iterator[Epoch]:
 
 def stamped(path: Path, default_date: date, stats: LogStats) -> Iterator[tuple[int, Epoch]]:
     """(UTC ns, epoch) of every epoch kept (module docstring), counting into `stats`."""
-    first_date = next((e.date for e in epochs(path, Tally()) if e.date is not None), default_date)
-    clock, held, last = Clock(first_date), [], None
-    for epoch in epochs(path, stats.tally):
+    timed_fix = [e.has_fix and e.seconds_of_day is not None for e in epochs(path, Tally())]
+    start = timed_fix.index(True) if True in timed_fix else len(timed_fix)
+    first_date = next((e.date for e in itertools.islice(epochs(path, Tally()), start, None) if e.date is not None), default_date)
+    clock, last = Clock(first_date), None
+    for index, epoch in enumerate(epochs(path, stats.tally)):
         stats.epochs += 1
-        when = clock.utc(epoch)
-        if when is None and last is None:
-            held.append(epoch)
+        if index < start:
+            stats.before_first_fix += 1
             continue
+        when = clock.utc(epoch)
         ns = unix_ns(when) if when is not None else last
+        assert ns is not None, "the first kept epoch has a time"
+        if last is not None and abs(ns - last) > DAY_NS:
+            stats.clock_jumps += 1
+            continue
         if last is not None and ns < last:
             stats.out_of_order += 1
             continue
-        for early in held:
-            stats.with_fix += early.has_fix
-            yield ns, early
-        held, last = [], ns
+        clock.keep(epoch)
+        last = ns
         stats.with_fix += epoch.has_fix
         yield ns, epoch
 

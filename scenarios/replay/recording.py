@@ -106,25 +106,36 @@ def distance_m(a: tuple[float, float, float], b: tuple[float, float, float]) -> 
 @dataclass
 class LogStats:
     """What reading NMEA sentences counted: lines read and skipped (sim.nmea.epochs.Tally), epochs, those with a fix, and
-    those left out as out of time order."""
+    those set aside from the log's clock (scenarios.replay.nmea_log): before the first fix, jumps of more than a day, and
+    out of time order."""
 
     tally: Tally = field(default_factory=Tally)
     epochs: int = 0
     with_fix: int = 0
+    before_first_fix: int = 0
+    clock_jumps: int = 0
     out_of_order: int = 0
 
     def summary(self) -> str:
         """One line for the user."""
-        late = f"; {self.out_of_order} epochs out of time order left out" if self.out_of_order else ""
-        return f"{self.tally.summary()}; {self.epochs} epochs, {self.with_fix} with a fix{late}"
+        aside = [
+            f"{self.before_first_fix} before the first fix" if self.before_first_fix else "",
+            f"{self.clock_jumps} jumping more than a day" if self.clock_jumps else "",
+            f"{self.out_of_order} out of time order" if self.out_of_order else "",
+        ]
+        said = ", ".join(a for a in aside if a)
+        return f"{self.tally.summary()}; {self.epochs} epochs, {self.with_fix} with a fix" + (f"; epochs set aside: {said}" if said else "")
 
     def tree(self) -> dict:
         """The counts as metrics.json holds them."""
         return {
             "read": dict(sorted(self.tally.read.items())),
+            "read_without_checksum": self.tally.unchecked,
             "skipped": dict(self.tally.skipped.most_common()),
             "epochs": self.epochs,
             "with_fix": self.with_fix,
+            "before_first_fix": self.before_first_fix,
+            "clock_jumps": self.clock_jumps,
             "out_of_order": self.out_of_order,
         }
 

@@ -40,7 +40,7 @@ from datetime import UTC, date, datetime, timedelta
 from typing import Protocol, TypeVar
 
 from sim.nmea import systems
-from sim.nmea.read import Gga, Gll, Gns, Gsa, Gsv, Record, Rmc, Skipped, Vtg, Zda, kind, read
+from sim.nmea.read import Gga, Gll, Gns, Gsa, Gsv, Record, Rmc, Skipped, Vtg, Zda, has_checksum, kind, read
 
 TIMED = ("GGA", "RMC", "GNS")
 """Sentences whose fix time cuts epochs."""
@@ -57,16 +57,19 @@ GNS_QUALITY = {"R": 4, "F": 5, "D": 2, "A": 1, "P": 1, "E": 6, "N": 0}
 
 @dataclass
 class Tally:
-    """Lines read (by sentence type) and not read (by reason) so far."""
+    """Lines read (by sentence type; how many of them without a checksum, as NMEA 0183 allows: sim.nmea.read) and not read
+    (by reason) so far."""
 
     read: Counter[str] = field(default_factory=Counter)
     skipped: Counter[str] = field(default_factory=Counter)
+    unchecked: int = 0
 
     def summary(self) -> str:
-        """One line: how many sentences were read and how many lines skipped, by reason."""
+        """One line: how many sentences were read (and of them without a checksum) and how many lines skipped, by reason."""
         read = ", ".join(f"{k} {n}" for k, n in sorted(self.read.items()))
         skipped = ", ".join(f"{n} {reason}" for reason, n in self.skipped.most_common())
-        return f"read {sum(self.read.values())} sentences ({read or 'none'}); skipped {sum(self.skipped.values())} lines" + (
+        unchecked = f", {self.unchecked} of them without a checksum" if self.unchecked else ""
+        return f"read {sum(self.read.values())} sentences ({read or 'none'}){unchecked}; skipped {sum(self.skipped.values())} lines" + (
             f" ({skipped})" if skipped else ""
         )
 
@@ -110,6 +113,7 @@ class Splitter:
         name = kind(record) if record is not None else ""
         if record is not None:
             self.tally.read[name] += 1
+            self.tally.unchecked += not has_checksum(text)
         time = getattr(record, "seconds_of_day", None) if name in TIMED else None
         key = None if time is None else round(time * 1000)
         talker = record.talker if record is not None else ""

@@ -3,8 +3,14 @@
 read(line) gives one record (Gga, Rmc, Gsa, Gsv, Vtg, Gll, Zda, Gns, Gst) or raises Skipped naming
 why the line is not read:
 - "not a sentence": no '$' address and body (garbage, a truncated or merged line, a comment);
-- "no checksum", "bad checksum": without its '*hh' a truncated line cannot be told from a whole
-  one, so a sentence is read only with a checksum that matches (pynmea2's strict mode agrees);
+- "bad checksum": a '*hh' that does not match the sentence;
+- "no checksum": a sentence without '*hh' that cannot be read safely. NMEA 0183 made the checksum
+  optional but for RMA, RMB and RMC (version 2.0, 1992; e.g. Leica's MK9 manual quotes it: "Checksum is
+  mandatory in this sentence"), and receivers such as the HP/Symmetricom 58534A write none (gpsd's
+  hp58534a.log). Such a sentence is read, as pynmea2 reads it (its default, non-strict mode), when its
+  type allows it and it has at least the fields its type has had since NMEA 0183 2.0 (MIN_FIELDS): a line
+  cut short by a truncated log loses fields, so it is still refused; only a cut inside the last field
+  cannot be told. Sentences read without a checksum are counted (sim.nmea.epochs.Tally.unchecked);
 - "proprietary": $P... sentences are a manufacturer's own ($PQGSV is Quectel's, $PUBX u-blox's),
   never read as talker sentences;
 - "other type": a sentence of a type not read here (TXT, GBS, HDT, AIS !AIVDM, ...).
@@ -36,6 +42,12 @@ _TIME = re.compile(r"(\d\d)(\d\d)(\d\d(?:\.\d*)?)")
 _DATE = re.compile(r"(\d\d)(\d\d)(\d\d)")
 _ANGLE = re.compile(r"(\d+)(\d\d(?:\.\d*)?)")
 _ADDRESS = re.compile(r"[A-Z0-9]{5}")
+CHECKSUM_MANDATORY = ("RMA", "RMB", "RMC")
+"""Sentence types whose checksum NMEA 0183 (from version 2.0) makes mandatory: never read without one."""
+MIN_FIELDS = {"GGA": 14, "GSA": 17, "GSV": 3, "VTG": 8, "GLL": 6, "ZDA": 6, "GNS": 12, "GST": 8}
+"""Data fields (after the address) each type has had since NMEA 0183 2.0 (GLL: 2.0's six, before 2.3's mode; VTG: eight
+before 2.3's mode; GNS: 3.0's twelve; GSV: the header, each satellite's four more): a sentence without a checksum with
+fewer was cut short."""
 
 
 class Skipped(ValueError):
@@ -193,11 +205,9 @@ def read(line: str) -> Record:
         raise Skipped("other type", text)
     if not text.startswith("$") or "," not in text:
         raise Skipped("not a sentence", text)
-    star = text.rfind("*")
-    if star < 0:
-        raise Skipped("no checksum", text)
-    body, given = text[1:star], text[star + 1 :]
-    if given.upper() != checksum(body):
+    checked = has_checksum(text)
+    body = text[1 : text.rfind("*")] if checked else text[1:]
+    if checked and text[text.rfind("*") + 1 :].upper() != checksum(body):
         raise Skipped("bad checksum", f"{text} (computed {checksum(body)})")
     address, *fields = body.split(",")
     if address.startswith("P"):
@@ -205,9 +215,16 @@ def read(line: str) -> Record:
     if not _ADDRESS.fullmatch(address):
         raise Skipped("not a sentence", text)
     decoder = _DECODERS.get(address[2:])
+    if not checked and (address[2:] in CHECKSUM_MANDATORY or len(fields) < MIN_FIELDS.get(address[2:], 0)):
+        raise Skipped("no checksum", text)
     if decoder is None:
         raise Skipped("other type", text)
     return decoder(address[:2], _Fields(fields))
+
+
+def has_checksum(line: str) -> bool:
+    """Whether a sentence carries a '*hh' checksum field (module docstring: one without it may still be read)."""
+    return "*" in line
 
 
 def parse(line: str) -> dict:

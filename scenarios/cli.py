@@ -192,7 +192,7 @@ def run(
         with user_errors():
             spec = (load_fast if fast else scenarios.load)(scenario, set=set_, seed=seed)
             out = out if out is not None else default_out_dir(spec)
-            observer = _live_view(view, view_save, view_colour, out) if view or view_save is not None else None
+            observer = _live_view(view, view_save, view_colour, out, "run") if view or view_save is not None else None
         try:
             with RunProgress(spec.name, console, quiet) as progress:
                 result = scenarios.run(spec, out, workers=workers, report=not no_report, progress=progress.update, observer=observer)
@@ -211,16 +211,18 @@ def run(
     raise typer.Exit(0 if result.passed else 1)
 
 
-def _live_view(view: bool, save: Path | None, colour: str, out: Path):
-    """The run's live view (scenarios.view): one line and exit 2 without the rerun SDK; one line when --view finds no viewer."""
+def _live_view(view: bool, save: Path | None, colour: str, out: Path, what: str):
+    """The live view (scenarios.view) of a run (`what` "run": LiveView) or a replay ("replay": ReplayView): one line and exit 2
+    without the rerun SDK or with a bad colour; one line when --view finds no viewer."""
     from scenarios.view import import_rerun
 
     import_rerun()
     from scenarios.view.live import LiveView
+    from scenarios.view.replay_view import ReplayView
     from scenarios.view.sink import FALLBACK_NAME, ViewSink, ViewTarget
 
     sink = ViewSink(ViewTarget(viewer=view, save=save))
-    observer = LiveView(sink, colour)
+    observer = (LiveView if what == "run" else ReplayView)(sink, colour)
     why = sink.connect()
     if why is not None:
         where = save if save is not None else out / FALLBACK_NAME
@@ -641,18 +643,26 @@ def replay(
     workers: int = typer.Option(1, min=1, help="processes: 2 overlaps matching with reading"),
     no_report: bool = typer.Option(False, "--no-report", help="skip report.md and report.html"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    view: bool = typer.Option(False, "--view", help="stream the replay to the rerun viewer as it happens (running, else spawned); riverbench[view]"),
+    view_save: Path = typer.Option(None, "--view-save", help="write the live view to this .rrd file (open: rerun FILE); riverbench[view]"),
+    view_colour: str = typer.Option("height", "--view-colour", help="colour the viewed scan by height or intensity"),
 ) -> None:
     """Run a scenario's matchers and estimators over a real recording (no truth): a run directory and a report."""
     from scenarios import load as load_scenario
     from scenarios.pipeline.progress import RunProgress
     from scenarios.pipeline.runner import RunFailed, RunInterrupted
     from scenarios.replay import replay as replay_recording
+    from scenarios.replay.run import default_out_dir
 
     with stoppable("replay interrupted; nothing written", (RunInterrupted,)):
         with user_errors():
             if not recording.exists():
                 raise ValueError(f"{recording}: no such bag, pcap or NMEA log")
             scenarios_spec = load_scenario(scenario, set=set_)
+            observer = None
+            if view or view_save is not None:
+                out = out if out is not None else default_out_dir(recording)
+                observer = _live_view(view, view_save, view_colour, out, "replay")
         try:
             with user_errors(), RunProgress(recording.name, console, quiet) as progress:
                 result = replay_recording(
@@ -667,6 +677,7 @@ def replay(
                     workers=workers,
                     report=not no_report,
                     progress=progress.update,
+                    observer=observer,
                 )
         except RunFailed as exc:
             errors.print(f"[bold red]replay failed:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)

@@ -29,6 +29,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import tomli_w
@@ -54,6 +55,10 @@ from scenarios.score import units
 from scenarios.spec.scenario import Scenario
 from sim.scan import Scan
 
+if TYPE_CHECKING:
+    from fusion.verdict import Verdict
+    from sim.gnss_fix import GnssFix
+
 
 @dataclass
 class ReplayResult:
@@ -70,6 +75,34 @@ class ReplayResult:
         return self.out_dir / "report.html"
 
 
+@dataclass(frozen=True)
+class Replaying:
+    """What a replay's observer is begun with in place of a run's assembled stack (there is no world and no truth): the
+    scenario whose estimators run, the opened recording, and the reference (None without --reference)."""
+
+    scenario: Scenario
+    recording: Recording
+    reference: Reference | None
+
+
+class ReplayObserver(Protocol):
+    """A watcher of a replay (the live view, scenarios.view.replay_view): scenarios.pipeline.observer.RunObserver's scan, fix
+    and close, begun with a Replaying. The Feed's `truth` is the identity (a replay has none): a replay observer ignores it."""
+
+    def begin(self, replaying: Replaying, run_dir: Path) -> None: ...
+
+    def scan(self, event: ScanEvent, truth: np.ndarray, estimates: dict[str, np.ndarray]) -> None: ...
+
+    def fix(self, fix: GnssFix, verdicts: dict[str, Verdict]) -> None: ...
+
+    def close(self, keep: bool) -> None: ...
+
+
+def default_out_dir(recording: str | os.PathLike) -> Path:
+    """runs/replay-<recording's name>-<UTC time>/."""
+    return Path("runs") / f"replay-{Path(recording).stem}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
+
+
 def replay(
     recording: str | os.PathLike,
     scenario: Scenario | str | os.PathLike,
@@ -83,17 +116,20 @@ def replay(
     workers: int = 1,
     report: bool = True,
     progress: Callable[[float, float, float, int], None] | None = None,
+    observer: ReplayObserver | None = None,
 ) -> ReplayResult:
     """Replay `recording` through `scenario`'s matchers and estimators into a run directory (default runs/replay-<name>-<UTC time>/).
 
     A recording that cannot be read, a topic that is not in it or that is ambiguous, a capture
     without data packets, an NMEA log without a usable epoch, a log or reference (scenarios.replay.reference)
     that does not overlap the recording: ValueError, one line, nothing written. workers: processes for the matchers (1: all in this one).
-    progress, if given, is called as progress(t, t_start, t_end, scans).
+    progress, if given, is called as progress(t, t_start, t_end, scans). observer, if given, is begun with the replay once its
+    inputs are read, sees each scan and fix, and is closed (keep=True) before the run directory is renamed into place, or
+    (keep=False) when the replay fails.
     """
     scenario = scenario if isinstance(scenario, Scenario) else scenarios.load(scenario)
     path = Path(recording)
-    out = Path(out_dir) if out_dir is not None else Path("runs") / f"replay-{path.stem}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}"
+    out = Path(out_dir) if out_dir is not None else default_out_dir(path)
     check_out(out, directory=True)
     world = worlds.load(scenario.world, **scenario.world_params)
     place = Place(tuple(world.origin), scenario.gnss.epoch_utc, scenario.lidar.start_azimuth_deg, imu_noise(scenario), compass_sigma(scenario))
@@ -109,11 +145,19 @@ def replay(
         ref = reference_module.read(reference, opened.geo, place)
         ref.overlap(opened)
     with staged_dir(out) as tmp:
-        tree = replay_into(scenario, opened, tmp, workers, progress, ref, read_s)
-        if report:
-            from scenarios.replay import report as report_module
+        try:
+            if observer is not None:
+                observer.begin(Replaying(scenario, opened, ref), tmp)
+            tree = replay_into(scenario, opened, tmp, workers, progress, ref, read_s, observer)
+            if report:
+                from scenarios.replay import report as report_module
 
-            report_module.write(tmp)
+                report_module.write(tmp)
+            if observer is not None:
+                observer.close(keep=True)  # before the rename: what it writes into the run directory is complete
+        finally:
+            if observer is not None:
+                observer.close(keep=False)  # a no-op after close(keep=True)
     return ReplayResult(scenario, opened, out, tree)
 
 
@@ -160,7 +204,14 @@ def pose_samples(events: Iterator[Event]) -> Iterator[Event]:
 
 
 def replay_into(
-    scenario: Scenario, recording: Recording, tmp: Path, workers: int, progress, ref: Reference | None = None, read_s: float = 0.0
+    scenario: Scenario,
+    recording: Recording,
+    tmp: Path,
+    workers: int,
+    progress,
+    ref: Reference | None = None,
+    read_s: float = 0.0,
+    observer: ReplayObserver | None = None,
 ) -> dict:
     """Stream the recording through the matchers and estimators and write the run directory's data files into `tmp`
     (scored against the reference `ref` when there is one). wall_s (and the realtime factor) is the streaming's, from the
@@ -181,7 +232,9 @@ def replay_into(
     with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         wall_start = time.perf_counter()
         log = nmea_writer(nmea, lambda event: list(event.sentences))
-        feed = Feed(fed, pool, recorder, lambda stamp: start, recording.t_start, log, on_scan=on_scan, lookahead_scans=PIPELINED_SCANS)
+        feed = Feed(
+            fed, pool, recorder, lambda stamp: start, recording.t_start, log, on_scan=on_scan, observer=observer, lookahead_scans=PIPELINED_SCANS
+        )
         headings.sd_of = lambda eid: anchor.yaw_sd_deg(feed.cov_of(eid))
         feed.drive(
             events,
@@ -193,6 +246,7 @@ def replay_into(
         )
         pool.close()
         workers_rss, lanes = pool.workers_rss_mb, pool.lanes
+    startups = {eid: replay_metrics.startup(estimator, recording.t_start) for eid, estimator in feed.estimators.items()}
     if not (tmp / "gps.nmea").stat().st_size:
         (tmp / "gps.nmea").unlink()
     rec = recorder.finish([])
@@ -235,7 +289,7 @@ def replay_into(
         "anchor": start_pose.describe(float(rec.scan_t[start_pose.index])) if start_pose is not None else None,
     }
     antenna = np.asarray(scenario.gnss.antenna_offset_m, dtype=float)
-    tree = replay_metrics.compute(rec, run_info, antenna)
+    tree = replay_metrics.compute(rec, run_info, antenna, startups)
     if ref is not None:
         tree["reference"] = ref.tree()
         for eid, node in tree["estimators"].items():

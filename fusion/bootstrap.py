@@ -1,4 +1,5 @@
-"""Start-up alignment: the odometry frame's rotation and offset in the world from the first GPS travel."""
+"""Start-up alignment: the odometry frame's rotation and offset in the world from the first GPS travel, or, for a vessel
+at rest (moored at a pier), its position alone with the heading unknown until motion, a compass or a course gives it."""
 
 from __future__ import annotations
 
@@ -11,26 +12,36 @@ from fusion.observation import FixObservation
 from fusion.odometry import OdometryTrack
 from riverbench.angles import wrap_angle
 
+UNKNOWN_YAW_VAR = np.pi**2 / 3.0
+"""Variance of a heading known to be nothing better than uniform over the circle."""
+HEADING_FROM_MOTION = "motion"
+HEADING_UNKNOWN = "unknown (at rest: position only)"
+HEADING_FROM_COMPASS = "compass"
+HEADING_FROM_COURSE = "course over ground"
+HEADING_GIVEN = "initial_pose"
+
 
 @dataclass(frozen=True)
 class Alignment:
-    """World pose of base_link at `stamp` and its 3x3 covariance, from a fit of odometry to GPS."""
+    """World pose of base_link at `stamp`, its 3x3 covariance, and what gave its heading (HEADING_*)."""
 
     stamp: float
     pose: np.ndarray
     cov: np.ndarray
+    heading_from: str = HEADING_FROM_MOTION
 
 
 @dataclass(frozen=True)
 class _Sample:
-    """One kept fix: its stamp, position, per-axis variance, and the odometry pose at it (with the
-    antenna lever applied) on odometry chain `segment` (None without odometry)."""
+    """One kept fix: its stamp, position, per-axis variance, the odometry pose at it (with the antenna lever applied) on
+    odometry chain `segment` (None without odometry), and the receiver's speed over ground (NaN when it gives none)."""
 
     stamp: float
     xy: np.ndarray
     var: float
     antenna_odo: np.ndarray | None
     segment: int | None
+    speed_mps: float = np.nan
 
 
 class Bootstrap:
@@ -59,10 +70,10 @@ class Bootstrap:
         odo = odometry.pose_at(obs.stamp) if odometry.velocity() is not None else None
         segment = odometry.segment if odo is not None else None
         if segment is not None and segment != self._segment:  # fixes seen on an earlier (broken) chain no longer link to this one
-            self._samples = [f if f.segment in (None, segment) else _Sample(f.stamp, f.xy, f.var, None, None) for f in self._samples]
+            self._samples = [f if f.segment in (None, segment) else _Sample(f.stamp, f.xy, f.var, None, None, f.speed_mps) for f in self._samples]
             self._segment = segment
         antenna = None if odo is None else odo[:2] + rot2(odo[2]) @ self.lever
-        self._samples.append(_Sample(obs.stamp, np.asarray(obs.xy, dtype=float), float(np.trace(obs.cov)) / 2.0, antenna, segment))
+        self._samples.append(_Sample(obs.stamp, np.asarray(obs.xy, dtype=float), float(np.trace(obs.cov)) / 2.0, antenna, segment, obs.speed_mps))
         self._odo_at_last = odo
         cut = 0
         while self._samples[cut].stamp < obs.stamp - self.window_s:
@@ -78,6 +89,30 @@ class Bootstrap:
         if alignment is None or alignment.cov[2, 2] > self.max_yaw_var:
             return None
         return alignment
+
+    def at_rest(self, stamp: float, static_speed_mps: float, static_s: float) -> Alignment | None:
+        """The position of a vessel at rest, its heading unknown, when the latest kept fix is at `stamp` and the kept fixes
+        show no motion: the last min_fixes all report a speed over ground below static_speed_mps, or (a receiver that
+        reports none) those of the last static_s seconds, spanning it, all lie within baseline_m / 2 of their mean."""
+        if len(self._samples) < self.min_fixes or self._samples[-1].stamp != stamp:
+            return None
+        last = self._samples[-self.min_fixes :]
+        speeds = np.array([f.speed_mps for f in last])
+        if np.isfinite(speeds).all():
+            still = bool(np.all(speeds < static_speed_mps))
+            recent = last
+        else:
+            recent = [f for f in self._samples if f.stamp >= stamp - static_s]
+            spans = self._samples[0].stamp <= stamp - static_s
+            xy = np.array([f.xy for f in recent])
+            still = spans and bool(np.all(np.hypot(*(xy - xy.mean(0)).T) <= self.baseline_m / 2.0))
+        if not still:
+            return None
+        xy = np.array([f.xy for f in recent])
+        # the fixes' errors are correlated over tens of seconds: their mean is as uncertain as one; the lever's way is unknown
+        sigma2 = float(np.mean([f.var for f in recent])) + float(self.lever @ self.lever)
+        centre = xy.mean(0)
+        return Alignment(stamp, np.array([centre[0], centre[1], 0.0]), np.diag([sigma2, sigma2, UNKNOWN_YAW_VAR]), HEADING_UNKNOWN)
 
     def _fit(self) -> Alignment | None:
         gps = np.array([f.xy for f in self._samples])

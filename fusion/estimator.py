@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy.stats import chi2
 
-from fusion.bootstrap import Alignment, Bootstrap
+from fusion.bootstrap import HEADING_FROM_COMPASS, HEADING_FROM_COURSE, HEADING_GIVEN, HEADING_UNKNOWN, Alignment, Bootstrap
 from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
 from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix
 from fusion.monitors import FixContext, Monitor
@@ -81,6 +81,13 @@ class Estimator:
             math.sqrt(self._compass_gate),
         )
         self._compass_check = CompassGyroCheck(budget) if checks else None
+        self.heading_from = ""
+        """What gave the heading (fusion.bootstrap.HEADING_*; '' before the estimator starts): a vessel that starts at rest
+        has its position first and its heading unknown until motion, a compass or the receiver's course gives it."""
+        self.position_at = math.nan
+        """When the estimator first had a pose (s)."""
+        self.heading_at = math.nan
+        """When it first had a heading (s; NaN while it has none)."""
 
     # ---- public API -------------------------------------------------------------------------
     @property
@@ -121,6 +128,8 @@ class Estimator:
             self._bootstrap.add(obs, self.odometry)
         if not self.initialized:
             self._try_initialise(obs)
+        elif self.heading_from == HEADING_UNKNOWN:
+            self._find_heading(obs)
         ctx = self._context(obs)
         verdict = self.monitor.check(obs, ctx)
         self.monitor.commit(obs, verdict)
@@ -160,7 +169,7 @@ class Estimator:
             how = "re-aligned pose and heading" if fresh is not None else "moved the position"
             self.events.append(Event(obs.stamp, "fix", f"re-locked onto GPS after {obs.stamp - self._refused_since:.0f} s of refused fixes: {how}"))
             if fresh is not None:
-                self._initialise(fresh)
+                self._start(fresh)
             else:
                 self._relock(obs)
             self.monitor.reset()
@@ -264,6 +273,10 @@ class Estimator:
         if abs(sample.field_norm_ut / p.field_ut - 1.0) > p.field_tolerance or abs(sample.dip_deg - p.dip_deg) > p.dip_tolerance_deg:
             return False
         sigma = math.radians(p.compass_sigma_deg) if p.compass_sigma_deg is not None else float(sample.sigma)
+        if self.heading_from == HEADING_UNKNOWN:  # started at rest: the first undisturbed compass heading is the heading
+            self._set_heading(stamp, float(sample.yaw), sigma**2, HEADING_FROM_COMPASS)
+            self._heading_last = stamp
+            return True
         heading = self._heading()
         if heading is None:
             return False
@@ -376,14 +389,42 @@ class Estimator:
         if self.params.initial_pose is not None:
             self._initialise_from_params(obs.stamp, self.params.initial_pose)
             return
-        alignment = self._bootstrap.alignment(obs.stamp)
+        p = self.params
+        alignment = self._bootstrap.alignment(obs.stamp) or self._bootstrap.at_rest(obs.stamp, p.init_static_speed_mps, p.init_static_s)
         if alignment is not None:
-            self._initialise(alignment)
+            self._start(alignment)
+
+    def _find_heading(self, obs: FixObservation) -> None:
+        """Started at rest, the heading unknown: take it from motion (the start-up alignment, once the travel gives one), else
+        from the receiver's course over ground once the vessel makes init_course_speed_mps."""
+        fresh = self._bootstrap.alignment(obs.stamp)
+        if fresh is not None:
+            self._start(fresh)
+        elif obs.speed_mps >= self.params.init_course_speed_mps and math.isfinite(obs.course_deg):
+            yaw = math.radians(90.0 - obs.course_deg)  # clockwise from north -> counter-clockwise from east
+            self._set_heading(obs.stamp, yaw, math.radians(self.params.course_heading_sigma_deg) ** 2, HEADING_FROM_COURSE)
+
+    def _set_heading(self, stamp: float, yaw: float, var: float, source: str) -> None:
+        """Start over at the current position (and its covariance) with this heading."""
+        x, y, _ = self._pose3()
+        cov = self._cov3()
+        cov[2, :] = cov[:, 2] = 0.0
+        cov[2, 2] = var
+        self._start(Alignment(stamp, np.array([x, y, float(wrap_angle(yaw))]), cov, source))
+
+    def _start(self, alignment: Alignment) -> None:
+        """Initialise (or start over) from `alignment`, noting when the pose and the heading came and what gave the heading."""
+        self._initialise(alignment)
+        self.heading_from = alignment.heading_from
+        if math.isnan(self.position_at):
+            self.position_at = alignment.stamp
+        if math.isnan(self.heading_at) and alignment.heading_from != HEADING_UNKNOWN:
+            self.heading_at = alignment.stamp
 
     def _initialise_from_params(self, stamp: float, initial_pose: tuple[float, float, float]) -> None:
         (x, y, yaw_deg), (sigma_m, sigma_deg) = initial_pose, self.params.initial_sigma
         cov = np.diag([sigma_m**2, sigma_m**2, math.radians(sigma_deg) ** 2])
-        self._initialise(Alignment(stamp, np.array([x, y, math.radians(yaw_deg)]), cov))
+        self._start(Alignment(stamp, np.array([x, y, math.radians(yaw_deg)]), cov, HEADING_GIVEN))
 
     def _update_height(self, obs: FixObservation) -> None:
         if not math.isfinite(self._height_var):

@@ -12,6 +12,7 @@ import math
 import numpy as np
 from pydantic import Field
 
+from fusion.bootstrap import HEADING_FROM_MOTION, HEADING_UNKNOWN
 from fusion.estimator import Estimator
 from fusion.geometry import drot2, rot2
 from fusion.monitors import Monitor
@@ -51,6 +52,9 @@ class GpsOnly(Estimator):
     def _try_initialise(self, obs: FixObservation) -> None:
         """Initialised by its first fix, in _use_fix."""
 
+    def _find_heading(self, obs: FixObservation) -> None:
+        """Its heading is its own course over the GPS track, in _take."""
+
     def _use_fix(self, obs: FixObservation, verdict: Verdict) -> None:
         self._take(obs)
 
@@ -62,6 +66,10 @@ class GpsOnly(Estimator):
             self._yaw = math.atan2(d[1], d[0])
             self._yaw_var = 2.0 * float(np.trace(obs.cov)) / float(d @ d)
             self._course_from = obs.xy
+            if math.isnan(self.heading_at):
+                self.heading_from, self.heading_at = HEADING_FROM_MOTION, obs.stamp
+        if self._last is None and math.isnan(self.position_at):
+            self.heading_from, self.position_at = HEADING_UNKNOWN, obs.stamp
         self._last = obs
         self._update_height(obs)
 

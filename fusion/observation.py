@@ -16,8 +16,9 @@ DEAD_RECKONING = 6
 
 @dataclass(frozen=True)
 class FixObservation:
-    """A usable fix: antenna (x, y) in world ENU, its 2x2 covariance, height and its variance, and the
-    receiver's per-satellite reports (GSV/GSA: prn, az, el, C/N0, used) for monitors that read them."""
+    """A usable fix: antenna (x, y) in world ENU, its 2x2 covariance, height and its variance, the receiver's
+    per-satellite reports (GSV/GSA: prn, az, el, C/N0, used) for monitors that read them, and its speed over ground
+    (m/s) and course (deg clockwise from north; RMC/VTG), NaN when it gives none."""
 
     stamp: float
     xy: np.ndarray
@@ -27,6 +28,8 @@ class FixObservation:
     quality: int
     hdop: float
     sats: tuple[SatelliteReport, ...] = ()
+    speed_mps: float = math.nan
+    course_deg: float = math.nan
 
 
 def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[FixObservation | None, str]:
@@ -59,6 +62,17 @@ def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[Fi
             quality=quality,
             hdop=hdop,
             sats=tuple(getattr(fix, "sats", ()) or ()),
+            speed_mps=_finite(getattr(fix, "speed_mps", math.nan)),
+            course_deg=_finite(getattr(fix, "course_deg", math.nan)),
         ),
         "",
     )
+
+
+def _finite(value: object) -> float:
+    """A finite float, else NaN (a plugin's fix may carry anything in an optional field)."""
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return math.nan
+    return number if math.isfinite(number) else math.nan

@@ -96,6 +96,33 @@ class EstimatorParams(BaseEstimatorParams):
         description="start-up alignment needs a heading whose standard deviation (from the fit's residuals) is at most "
         "this [5 deg]; a re-lock re-aligns the same way when it can",
     )
+    init_static_speed_mps: float = Field(
+        0.3,
+        gt=0,
+        description="a vessel whose receiver reports a speed over ground below this on init_min_fixes consecutive kept "
+        "fixes is at rest (moored): the estimator starts on its position, its heading unknown until motion, a compass or "
+        "the receiver's course gives it [0.3 m/s: consumer receivers' Doppler speed is good to 0.05 m/s (u-blox NEO-M8 "
+        "datasheet, velocity accuracy 50%), so a moored boat reports well under it and one under way never]",
+    )
+    init_static_s: float = Field(
+        20.0,
+        gt=0,
+        description="a receiver that reports no speed (GGA only) shows a vessel at rest when its kept fixes over this long "
+        "all stay within init_baseline_m / 2 of their mean [20 s: a boat at 0.5 m/s or more leaves that circle]",
+    )
+    init_course_speed_mps: float = Field(
+        1.0,
+        gt=0,
+        description="a vessel that started at rest takes its heading from the receiver's course over ground (RMC/VTG) once "
+        "it reports at least this speed [1 m/s: the course's own error, about speed error / speed, is then 3 deg]",
+    )
+    course_heading_sigma_deg: float = Field(
+        10.0,
+        gt=0,
+        description="standard deviation of a heading taken from the course over ground: wind and current set a small "
+        "craft off its heading by its leeway and drift, typically 5-15 deg (Allen and Plourde 1999, Review of Leeway, "
+        "USCG R&D Center CG-D-08-99) [10 deg]",
+    )
     default_odom_sigma_m: float = Field(
         0.2,
         gt=0,

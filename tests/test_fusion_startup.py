@@ -1,4 +1,5 @@
-"""Start-up alignment (fusion.bootstrap): the heading it starts a filter on is as good as the uncertainty it claims.
+"""Start-up alignment (fusion.bootstrap): the heading it starts a filter on is as good as the uncertainty it claims; a
+vessel that starts at rest has its position first and its heading from its course, its travel or a compass.
 
 A boat under way along +x (true yaw 0) in open water, the bench's receiver model with its time-correlated errors,
 and either exact odometry (the odometry track's fit) or none (the GPS course). The first accepted alignment of
@@ -14,10 +15,12 @@ import gnss_worlds as gw
 import numpy as np
 import pytest
 
-from fusion.bootstrap import Bootstrap
+import fusion
+from fusion.bootstrap import HEADING_FROM_COMPASS, HEADING_FROM_COURSE, HEADING_FROM_MOTION, Bootstrap
 from fusion.ekf import EkfParams
 from fusion.observation import screen
 from fusion.odometry import OdometryTrack
+from riverbench.samples import HeadingSample
 from sim import GnssReceiver
 
 STARTS = 12
@@ -59,3 +62,58 @@ def test_the_start_heading_lies_within_two_of_its_claimed_sigmas_in_open_water(w
     z = errors / sigmas
     assert np.all(np.abs(z) <= 2.0), f"yaw errors {errors.round(2)} deg against claimed sigmas {sigmas.round(2)} deg"
     assert np.sqrt(np.mean(z**2)) <= 1.0
+
+
+class MooredThenUnderWay:
+    """A vessel at rest at the origin with heading yaw_deg until t_leave, then ahead along that heading at `speed`."""
+
+    def __init__(self, yaw_deg: float, t_leave: float, speed: float = 2.0) -> None:
+        self.yaw, self.t_leave, self.speed = np.radians(yaw_deg), t_leave, speed
+
+    def pose(self, t: float) -> np.ndarray:
+        c, s = np.cos(self.yaw), np.sin(self.yaw)
+        run = self.speed * max(t - self.t_leave, 0.0)
+        return np.array([[c, -s, 0.0, c * run], [s, c, 0.0, s * run], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+
+
+def start_from_rest(name: str, seed: int, compass_at: float | None = None) -> tuple[object, list[tuple[float, np.ndarray, int]]]:
+    """An estimator fed the bench's receiver on a vessel moored for 60 s (yaw 60 deg) that then leaves; with compass_at, one
+    undisturbed compass heading (the true one) at that time. Returns the estimator and its (t, pose, the fix's quality) after each fix."""
+    boat = MooredThenUnderWay(60.0, 60.0)
+    receiver = GnssReceiver(seed=seed)
+    estimator = fusion.create(name, antenna=(0.5, 0.0, 1.5))
+    poses = []
+    for t in receiver.epochs(120.0):
+        if compass_at is not None and compass_at <= t < compass_at + 0.2:
+            estimator.add_heading(HeadingSample(t, float(boat.yaw), np.array([19.9, -5.0, -47.0]), np.radians(1.0), 66.35))
+        fix = receiver.fix(gw.open_water(), boat, t)
+        estimator.add_fix(fix)
+        poses.append((t, estimator.pose, fix.quality))
+    return estimator, poses
+
+
+@pytest.mark.parametrize("name", ["ekf", "pf", "hdop_switch"])
+@pytest.mark.parametrize("seed", [0, 7])
+def test_a_moored_vessel_has_its_position_first_and_its_heading_once_it_moves(name, seed):
+    """At rest the receiver reports no speed: the estimator starts on its position within the first fixes, heading unknown;
+    once under way the course over ground (or the travel) gives the heading, and it is the true one."""
+    estimator, poses = start_from_rest(name, seed)
+    p = estimator.params
+    # init_min_fixes fixes below init_static_speed_mps: the receiver's speed at rest scatters up to 0.8 m/s while its filter settles
+    first_fix = next(t for t, _, quality in poses if quality)
+    assert estimator.position_at - first_fix <= 3.0
+    at_rest = [pose for t, pose, _ in poses if estimator.position_at <= t < 60.0]
+    assert all(np.isfinite(pose).all() and np.hypot(*pose[:2, 3]) < 5.0 for pose in at_rest)
+    assert estimator.heading_from in (HEADING_FROM_COURSE, HEADING_FROM_MOTION)
+    assert 60.0 < estimator.heading_at < 70.0
+    # the heading it starts on lies within two of its stated sigmas (a course's: course_heading_sigma_deg) of the truth
+    [pose] = [pose for t, pose, _ in poses if t == estimator.heading_at]
+    assert abs(np.degrees(np.arctan2(pose[1, 0], pose[0, 0])) - 60.0) < 2.0 * p.course_heading_sigma_deg
+
+
+@pytest.mark.parametrize("name", ["ekf", "pf"])
+def test_a_compass_gives_a_moored_vessel_its_heading(name):
+    estimator, poses = start_from_rest(name, 3, compass_at=10.0)
+    assert estimator.heading_from == HEADING_FROM_COMPASS and 10.0 <= estimator.heading_at < 10.2
+    [pose] = [pose for t, pose, _ in poses if 10.0 <= t < 10.2]  # at rest, the compass's heading the filter's
+    assert abs(np.degrees(np.arctan2(pose[1, 0], pose[0, 0])) - 60.0) < 3.0

@@ -261,3 +261,17 @@ def test_the_clock_is_built_from_valid_fixes_only(tmp_path):
     stats = nmea_log.LogStats()
     kept = list(nmea_log.stamped(tmp_path / "reset.nmea", datetime(2020, 1, 1).date(), stats))
     assert stats.clock_jumps == 1 and len(kept) == 119 and (kept[-1][0] - kept[0][0]) / 1e9 == pytest.approx(59.5)
+
+
+def test_estimators_start_on_a_static_log_position_first(tmp_path):
+    """nmea_navsat_driver's RTK log is a receiver at rest (RMC speed 0.01 kn): ekf, pf and hdop_switch start on its
+    position within its first fixes, their heading unknown (no motion, compass or course gives one), and give tracks over
+    at least 95% of its fixes' span; the report says what gave each heading."""
+    result = replay(RTK, SCENARIO, tmp_path / "run", report=True)
+    span = result.metrics["run"]["duration_s"]
+    for eid in ("ekf", "pf", "hdop_switch"):
+        track = files.read_tum(tmp_path / "run" / f"{eid}.tum", scenario_time=True)
+        assert (track[-1, 0] - track[0, 0]) / span >= 0.95
+        assert result.metrics["estimators"][eid]["startup"]["heading_from"] == "unknown (at rest: position only)"
+        assert np.hypot(*(track[:, 1:3] - track[0, 1:3]).T).max() < 0.5  # it stays where the vessel lies
+    assert "heading by" in (tmp_path / "run" / "report.md").read_text()

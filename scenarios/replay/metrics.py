@@ -24,12 +24,12 @@ MATCHER_KEYS = ("success", "gated", "degenerate", "hz", "ms", "points", "failed"
 """The matcher metrics that need no truth."""
 
 
-def compute(rec: RunRecord, run_info: dict, antenna: np.ndarray) -> dict:
-    """The metrics tree (NaN where nothing could be measured; null in JSON)."""
+def compute(rec: RunRecord, run_info: dict, antenna: np.ndarray, startups: dict[str, dict]) -> dict:
+    """The metrics tree (NaN where nothing could be measured; null in JSON); `startups`: each estimator's startup()."""
     return {
         "run": run_info,
         "gps": gps_metrics(rec.fixes),
-        "estimators": {eid: estimator_metrics(rec, eid, antenna) for eid in rec.estimates},
+        "estimators": {eid: {**estimator_metrics(rec, eid, antenna), "startup": startups.get(eid, {})} for eid in rec.estimates},
         "matchers": {mid: {k: v for k, v in metrics.matcher_metrics(rec, mid).items() if k in MATCHER_KEYS} for mid in rec.matches},
     }
 
@@ -37,6 +37,17 @@ def compute(rec: RunRecord, run_info: dict, antenna: np.ndarray) -> dict:
 def measured(fixes: FixTable) -> np.ndarray:
     """Fixes with a measured position (not the receiver's dead reckoning, not invalid)."""
     return np.isin(fixes.quality, sorted(POSITION_QUALITIES))
+
+
+def startup(estimator: object, t_start: float) -> dict:
+    """How an estimator started: when it had a position and a heading (s after the recording's start, NaN: never) and what
+    gave the heading (fusion.bootstrap.HEADING_*: motion, a compass, the course over ground, or none yet: it started at
+    rest); empty for an estimator that does not say (a plugin)."""
+    heading_from = getattr(estimator, "heading_from", None)
+    if not isinstance(heading_from, str):
+        return {}
+    position_at, heading_at = (float(getattr(estimator, name, math.nan)) for name in ("position_at", "heading_at"))
+    return {"position_s": position_at - t_start, "heading_s": heading_at - t_start, "heading_from": heading_from or "never started"}
 
 
 def gps_metrics(fixes: FixTable) -> dict:

@@ -34,6 +34,9 @@ ESTIMATOR_COLUMNS = [
     Column("to GPS median (m)", get("against_gps.median"), metres, None),
     Column("to GPS p95 (m)", get("against_gps.p95"), metres, None),
     Column("to GPS max (m)", get("against_gps.max"), metres, None),
+    Column("position from (s)", get("startup.position_s"), lambda v: num(v, ".1f"), None),
+    Column("heading from (s)", get("startup.heading_s"), lambda v: num(v, ".1f"), None),
+    Column("heading by", lambda node: node.get("startup", {}).get("heading_from"), lambda v: str(v or "–"), None, text=True),
 ]
 REFERENCE_COLUMNS = [
     Column("available", get("against_reference.available"), share, "high"),
@@ -82,7 +85,9 @@ def build(tree: dict, images: dict[str, str]) -> list:
         note = (
             "No truth: horizontal distance (m) from each estimate's antenna, interpolated to the fix time, to the measured GPS "
             "fixes its own monitor trusted (their share: trusted fixes). GPS has its own error: this is agreement with it, "
-            "not accuracy."
+            "not accuracy. Start-up: when each estimator first had a position and a heading (s after the recording's start) "
+            "and what gave the heading: motion (GPS travel, with the odometry when there is some), a compass, the receiver's "
+            "course over ground, or nothing yet: a vessel at rest starts on its position alone."
         )
         blocks += [Heading(2, "Estimators against GPS"), document.ranked_table("estimator", estimators, ESTIMATOR_COLUMNS, labels(estimators), note)]
     blocks += [*run_report.figures(ctx, "map"), *gps(tree.get("gps", {}))]

@@ -20,6 +20,7 @@ import pynmea2
 import pytest
 from rosbags.rosbag2 import Writer
 
+import scenarios
 from scenarios.export.ros_messages import header, typestore
 from scenarios.pipeline import files
 from scenarios.replay import nmea_log, replay
@@ -95,7 +96,7 @@ def test_a_degraded_copy_scores_its_offset_against_the_rtk_log(degraded):
     assert blackout["count"] == 1 and blackout["seconds"] == pytest.approx(5.0)
     assert abs(blackout["max_error"] - want) < 0.02  # gps_only holds its last fix through the blackout
     assert set(m["estimators"]) == {"gps_only", "hdop_switch", "ekf", "pf"} and not m["matchers"]
-    assert not list((result.out_dir).glob("gicp*.tum"))
+    assert files.read_tum(result.out_dir / "gicp.tum").shape == (0, 8)  # no matcher ran: its file is its header, as a run's
     report = (result.out_dir / "report.md").read_text().splitlines()
     assert report[2].startswith("Scored against the reference nmea_navsat_driver_rtk_nmea.log (RTK NMEA")
     assert report[4].startswith("GNSS-only replay: the recording has no LiDAR")
@@ -275,3 +276,7 @@ def test_estimators_start_on_a_static_log_position_first(tmp_path):
         assert result.metrics["estimators"][eid]["startup"]["heading_from"] == "unknown (at rest: position only)"
         assert np.hypot(*(track[:, 1:3] - track[0, 1:3]).T).max() < 0.5  # it stays where the vessel lies
     assert "heading by" in (tmp_path / "run" / "report.md").read_text()
+    # every component has its file, as a run writes them: the matcher that did not run (no LiDAR) its header only
+    spec = scenarios.load(SCENARIO)
+    assert {f"{c.id}.tum" for c in [*spec.matchers, *spec.estimators]} == {p.name for p in (tmp_path / "run").glob("*.tum")}
+    assert all(files.read_tum(tmp_path / "run" / f"{m.id}.tum").shape == (0, 8) for m in spec.matchers)

@@ -5,8 +5,9 @@ log whose fixes replace a capture's or bag's own GPS) gives the scans and fixes 
 scenarios.pipeline.feed runs them through the scenario's matchers and estimators with the calls
 of a simulated run. A recording without LiDAR (an NMEA log alone, a bag of NMEA sentences or
 NavSatFix only) is a GNSS-only replay: the estimators run without a matcher (no odometry) and
-their poses are sampled right after each fix (a scan of no points that no matcher sees); the run
-directory has no matcher files and metrics.json says `run.gnss_only`. Everything the scenario says about the world and the sensors' simulation is
+their poses are sampled right after each fix (a scan of no points that no matcher sees); each of the
+scenario's matchers gets a TUM file of its header only (it never produced a pose: a run and a replay write the same
+files for the same components) and metrics.json says `run.gnss_only`. Everything the scenario says about the world and the sensors' simulation is
 unused, except the world's geodetic origin (the ENU frame), the GNSS epoch (the time base) and the
 boat's configuration (lidar mount, antenna offset). Matcher odometry is chained from identity at
 the first scan, then moved as a whole onto the first estimate that has a heading (at that scan or
@@ -307,5 +308,8 @@ def replay_into(
         files.write_tum(tmp / f"{eid}.tum", rec.scan_t, files.waterline(poses), geo.zero_ns)
     for mid, track in rec.matches.items():
         files.write_tum(tmp / f"{mid}.tum", rec.scan_t, files.waterline(track.pose), geo.zero_ns)
+    for matcher in scenario.matchers:
+        if matcher.id not in rec.matches:  # not run (a GNSS-only replay): no pose, its file as a run writes one
+            files.write_tum(tmp / f"{matcher.id}.tum", np.zeros(0), np.zeros((0, 4, 4)), geo.zero_ns)
     files.write_gps_csv(tmp / "gps.csv", rec, truth=False)
     return tree

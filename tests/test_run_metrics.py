@@ -556,16 +556,16 @@ def test_passage_entry_exit_max_added_and_recovery():
     t = np.array([i / 10 for i in range(101)])
     error = np.array([passage_error(x) for x in t])
     p = win.passage(win.Window("blackout", 3.0, 5.0), t, error)
-    assert p.entry_error == 1.0  # scan at 2.9 s
+    assert p.entry_error == 1.0  # scan at 3.0 s (fed before the window's first fix)
     assert p.max_error == pytest.approx(1.0 + 4.0 * 1.9)  # scan at 4.9 s
-    assert p.exit_error == 6.0  # scan at 5.0 s (at/after the end)
+    assert p.exit_error == 6.0  # scan at 5.1 s (the first after the end)
     assert p.added == 5.0
     assert p.recover_s == pytest.approx(2.2)  # 7.2 s: first error within 1 m of the entry's
 
 
 def test_passage_never_recovering_is_nan_and_edges_of_the_run():
     t = np.array([i / 10 for i in range(50)])
-    error = np.where(t < 2.0, 1.0, 5.0)
+    error = np.where(t <= 2.0, 1.0, 5.0)
     p = win.passage(win.Window("nlos", 2.0, 3.0), t, error)
     assert (p.entry_error, p.exit_error, p.added) == (1.0, 5.0, 4.0)
     assert math.isnan(p.recover_s)
@@ -575,17 +575,34 @@ def test_passage_never_recovering_is_nan_and_edges_of_the_run():
     assert last.exit_error == 5.0 and last.entry_error == 5.0 and math.isnan(last.recover_s)
 
 
+def test_a_window_holds_the_scans_its_fixes_shaped_so_a_sub_nanosecond_shift_of_its_fixes_moves_nothing():
+    # issue 41: at equal stamps the scan is fed before the fix, so the scan at a window's first fix has not seen it and
+    # the one at the fix that ends it is still inside; with [start, end) a fix 1e-10 s later moved a scan across
+    scans = np.arange(40) / 10.0
+    error = np.where((scans > 1.0) & (scans <= 2.0), 20.0, 1.0)  # what the estimate had after the blackout's first fix
+    quality = [1] * 5 + [0] * 5 + [1] * 10  # 5 Hz: blackout from the fix at 1.0 s to the one at 2.0 s
+    passages = []
+    for shift in (0.0, 1e-10, 3e-10):
+        fixes = fix_table([i / 5 + shift for i in range(20)], quality)
+        (blackout,) = [w for w in win.find(fixes, [], 0.2) if w.kind == "blackout"]
+        assert list(scans[blackout.scans(scans)]) == [x / 10 for x in range(11, 21)]
+        passages.append(win.passage(blackout, scans, error))
+    errors = {(p.entry_error, p.max_error, p.exit_error, p.added) for p in passages}
+    assert errors == {(1.0, 20.0, 1.0, 0.0)}  # the same scans, bit for bit
+    assert [p.recover_s for p in passages] == pytest.approx([0.1] * 3)  # from the window's end: moves by the shift only
+
+
 def test_window_metrics_per_kind_worst_over_windows():
     t = np.array([i / 10 for i in range(101)])
     error = np.array([passage_error(x) for x in t])
     windows = [win.Window("blackout", 3.0, 5.0), win.Window("blackout", 8.0, 8.5), win.Window("injected", 9.0, 9.5)]
-    error[t >= 8.0] = 30.0  # never recovers from the second blackout
+    error[t > 8.0] = 30.0  # never recovers from the second blackout
     rec = run_record(np.array([pose(0, 0, 0)] * len(t)), {"e": np.array([pose(0, 0, 0)] * len(t))}, t=t)
     out = metrics.window_metrics(windows, rec.scan_t, error)
     b = out["blackout"]
     assert b["count"] == 2 and b["seconds"] == pytest.approx(2.5)
     assert b["max_error"] == 30.0 and b["exit_error"] == 30.0
-    assert b["added"] == pytest.approx(30.0 - 1.5)  # entry of the second: 1.5 m at 7.9 s
+    assert b["added"] == pytest.approx(30.0 - 1.5)  # entry of the second: 1.5 m at 8.0 s
     assert b["recover_s"] == pytest.approx(2.2)  # the worst finite recovery
     assert b["recovered"] == 0.5
     assert out["nlos"]["count"] == 0 and math.isnan(out["nlos"]["recovered"]) and math.isnan(out["nlos"]["max_error"])
@@ -595,11 +612,11 @@ def test_window_metrics_per_kind_worst_over_windows():
 
 def test_window_heading_error_is_taken_over_the_scans_inside_that_kinds_windows():
     t = np.arange(100) / 10.0
-    yaw_error = np.where((t >= 2.0) & (t < 4.0), 10.0 * t, 0.5)  # 20-39 deg inside the blackout, 0.5 deg elsewhere
+    yaw_error = np.where((t > 2.0) & (t <= 4.0), 10.0 * t, 0.5)  # 21-40 deg inside the blackout, 0.5 deg elsewhere
     windows = [win.Window("blackout", 2.0, 4.0), win.Window("nlos", 6.0, 6.25)]
     out = metrics.window_metrics(windows, t, np.zeros(len(t)), yaw_error)
-    inside = 10.0 * t[(t >= 2.0) & (t < 4.0)]
-    assert out["blackout"]["yaw"] == {"p95": pytest.approx(np.percentile(inside, 95)), "max": pytest.approx(39.0)}
+    inside = 10.0 * t[(t > 2.0) & (t <= 4.0)]
+    assert out["blackout"]["yaw"] == {"p95": pytest.approx(np.percentile(inside, 95)), "max": pytest.approx(40.0)}
     assert out["nlos"]["yaw"] == {"p95": 0.5, "max": 0.5}
     assert all(math.isnan(v) for v in out["reacquisition"]["yaw"].values())  # no window of that kind: NaN
     assert units.quantity_of("estimators.ekf.windows.blackout.yaw.p95").unit == "deg"

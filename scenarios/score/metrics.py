@@ -240,7 +240,7 @@ def heading_inside(windows: list[win.Window], t: np.ndarray, yaw_error: np.ndarr
     """p95 and max of the heading error (deg) over the scans at times `t` inside any of `windows` (NaN: none inside)."""
     inside = np.zeros(len(t), dtype=bool)
     for w in windows:
-        inside |= (t >= w.start) & (t < w.end)
+        inside |= w.scans(t)
     heading = yaw_error[inside]
     heading = heading[np.isfinite(heading)]
     if not len(heading):

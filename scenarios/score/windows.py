@@ -34,6 +34,14 @@ class Window:
     def duration(self) -> float:
         return self.end - self.start
 
+    def scans(self, t: np.ndarray) -> np.ndarray:
+        """Which scans at times `t` the window's fixes shaped: those in (start, end]. At equal stamps a scan is fed before
+        the fix (scenarios.pipeline.stream), so the scan at `start` has not seen the window's first fix and the one at `end`
+        has not seen the fix that ends it. [start, end) made a metric jump when a fix moved 1e-10 s past its scan
+        (issue 41: gps_only's re-acquisition max error on quickstart [fast] 22.8 -> 8.3 m, the blackout's last scan
+        counted as re-acquisition)."""
+        return (t > self.start) & (t <= self.end)
+
 
 def find(fixes: FixTable, injected: list[tuple[float, float]], period_s: float) -> list[Window]:
     """Every window of the run, sorted by start; a window ends at the first fix after it."""
@@ -69,8 +77,8 @@ def _runs(t: np.ndarray, flag: np.ndarray, period_s: float, merge_s: float) -> l
 
 @dataclass(frozen=True)
 class Passage:
-    """One estimate through one window: the largest error inside it or at its exit (the first scan
-    at or after its end), at entry (the last scan before it) and exit, what the window added
+    """One estimate through one window: the largest error inside it (Window.scans) or at its exit (the
+    first scan after it), at entry (the last scan before it) and exit, what the window added
     (exit - entry) and the time after the window until the error is back within
     RECOVERED_MARGIN_M of its entry value (NaN: not within the run)."""
 
@@ -84,9 +92,9 @@ class Passage:
 def passage(window: Window, t: np.ndarray, error: np.ndarray) -> Passage:
     """How an estimate with horizontal `error` at scan times `t` went through `window`."""
     nan = float("nan")
-    inside = (t >= window.start) & (t < window.end)
-    before = np.nonzero(t < window.start)[0]
-    after = np.nonzero(t >= window.end)[0]
+    inside = window.scans(t)
+    before = np.nonzero(t <= window.start)[0]
+    after = np.nonzero(t > window.end)[0]
     entry = float(error[before[-1]]) if len(before) else (float(error[inside][0]) if inside.any() else nan)
     span = error[inside]
     exit_error = float(error[after[0]]) if len(after) else (float(span[-1]) if len(span) else nan)

@@ -1,7 +1,8 @@
 """Real receivers' NMEA logs (tests/data/nmea, see its NOTICE.md) through the parser, the cn0 monitor and a GNSS-only replay.
 
 Per log, one table row:
-- sentences: those pynmea2 reads strictly (a matching checksum; of the types sim.nmea.read reads), those we read, and
+- sentences: those pynmea2 reads (strictly with a checksum; without one where NMEA 0183 allows it; of the types sim.nmea.read
+  reads), those we read, and
   those both read with every field pynmea2 gives alike (tests/test_nmea_real.py's comparison);
 - epochs: fix times in the file (distinct times of the GGA, RMC and GNS pynmea2 reads; a receiver without a fix may
   leave them empty) against the epochs we read and those with a fix;

@@ -24,8 +24,10 @@ MATCHER_KEYS = ("success", "gated", "degenerate", "hz", "ms", "points", "failed"
 """The matcher metrics that need no truth."""
 
 
-def compute(rec: RunRecord, run_info: dict, antenna: np.ndarray, startups: dict[str, dict]) -> dict:
-    """The metrics tree (NaN where nothing could be measured; null in JSON); `startups`: each estimator's startup()."""
+def compute(rec: RunRecord, run_info: dict, antenna: np.ndarray, startups: dict[str, dict] | None = None) -> dict:
+    """The metrics tree (NaN where nothing could be measured; null in JSON); `startups`: each estimator's startup() (none
+    given: empty)."""
+    startups = startups or {}
     return {
         "run": run_info,
         "gps": gps_metrics(rec.fixes),

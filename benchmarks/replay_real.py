@@ -4,7 +4,10 @@ file, the clock offsets measured, and the realtime factor (capture duration / wa
 1 and 2 processes, and with 1 process and gicp on 2 threads (`--set matchers.gicp.params.num_threads=2`: a replay's
 main process only reads packets, so gicp's second thread has a core to itself).
 
-    .venv/bin/python benchmarks/replay_real.py [PCAP ...] [--scenario quickstart] [--rounds 3]
+    .venv/bin/python benchmarks/replay_real.py [PCAP ...] [--scenario quickstart] [--rounds 3] [--setups 1x1 2x1 1x2]
+
+--setups picks the configurations (processes x gicp threads; default all three), e.g. `--setups 2x1` for the default
+stack as `riverbench replay --workers 2` runs it.
 
 Default captures: tests/data/pcap/*.pcap (prefixes of VeloView's; the whole files are in VeloView's repository,
 see tests/data/pcap/NOTICE).
@@ -23,6 +26,9 @@ import scenarios
 from scenarios.replay import replay
 
 DATA = Path(__file__).resolve().parent.parent / "tests" / "data" / "pcap"
+SETUPS = {"1x1": (1, 1), "2x1": (2, 1), "1x2": (1, 2)}
+"""Configurations by name: (processes, gicp threads)."""
+TITLES = {"1x1": "1 proc", "2x1": "2 proc", "1x2": "1 proc, gicp 2 threads"}
 
 
 def main() -> None:
@@ -31,15 +37,14 @@ def main() -> None:
     parser.add_argument("pcaps", nargs="*", type=Path, default=sorted(DATA.glob("*.pcap")))
     parser.add_argument("--scenario", default="quickstart")
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--setups", nargs="+", choices=list(SETUPS), default=list(SETUPS), help="processes x gicp threads")
     args = parser.parse_args()
     setups = {  # (processes, gicp threads) -> the scenario
-        (1, 1): scenarios.load(args.scenario),
-        (2, 1): scenarios.load(args.scenario),
-        (1, 2): scenarios.load(args.scenario, set=["matchers.gicp.params.num_threads=2"]),
+        SETUPS[name]: scenarios.load(args.scenario, set=[f"matchers.gicp.params.num_threads={SETUPS[name][1]}"]) for name in args.setups
     }
     print(f"scenario {args.scenario} (default stack); realtime factor = capture duration / wall time, median of {args.rounds}")
     head = ["capture", "sensor", "s", "scans", "dropped", "gicp ok", "fixes", "capture-sensor", "sensor-GNSS", "capture-GNSS"]
-    print(" | ".join(head + ["1 proc", "2 proc", "1 proc, gicp 2 threads"]))
+    print(" | ".join(head + [TITLES[name] for name in args.setups]))
     with tempfile.TemporaryDirectory(prefix="riverbench-real-") as root:
         for path in args.pcaps:
             factors: dict[tuple[int, int], list[float]] = {setup: [] for setup in setups}

@@ -178,6 +178,11 @@ def test_streams_that_are_no_supported_sensor_are_named_in_one_line(tmp_path):
         identify(seen, "x.pcap")
     unlabelled = Evidence(300, 0x00, 0x37, 553e-6, 0.1953, False, lower_bank=False)  # HDL-32E firmware before 2016 sets no bytes
     assert identify(unlabelled, "x.pcap").model.name == "HDL-32E"
+    # riverbench's own 60 s export of dam_lock's chamber (0x21, 553 us, 10 Hz): its ranges made channels j and j + 16 alike,
+    # and the layout test refused the capture; the timing and rotation the bytes claim decide, and the note says so
+    walls = Evidence(300, 0x21, 0x37, 553e-6, 0.166, True, lower_bank=False)
+    found = identify(walls, "x.pcap")
+    assert found.model.name == "HDL-32E" and "looked like 16 lasers fired twice" in found.note
     assert all(m.laser_of_ring.dtype == np.uint16 and sorted(m.laser_of_ring) == list(range(m.lasers)) for m in MODELS)
 
 

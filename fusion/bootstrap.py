@@ -98,20 +98,19 @@ class Bootstrap:
             return None
         last = self._samples[-self.min_fixes :]
         speeds = np.array([f.speed_mps for f in last])
-        if np.isfinite(speeds).all():
+        reported = bool(np.isfinite(speeds).all())
+        recent = last if reported else [f for f in self._samples if f.stamp >= stamp - static_s]
+        xy = np.array([f.xy for f in recent])
+        centre = xy.mean(0)
+        if reported:
             still = bool(np.all(speeds < static_speed_mps))
-            recent = last
         else:
-            recent = [f for f in self._samples if f.stamp >= stamp - static_s]
             spans = self._samples[0].stamp <= stamp - static_s
-            xy = np.array([f.xy for f in recent])
-            still = spans and bool(np.all(np.hypot(*(xy - xy.mean(0)).T) <= self.baseline_m / 2.0))
+            still = spans and bool(np.all(np.hypot(*(xy - centre).T) <= self.baseline_m / 2.0))
         if not still:
             return None
-        xy = np.array([f.xy for f in recent])
         # the fixes' errors are correlated over tens of seconds: their mean is as uncertain as one; the lever's way is unknown
         sigma2 = float(np.mean([f.var for f in recent])) + float(self.lever @ self.lever)
-        centre = xy.mean(0)
         return Alignment(stamp, np.array([centre[0], centre[1], 0.0]), np.diag([sigma2, sigma2, UNKNOWN_YAW_VAR]), HEADING_UNKNOWN)
 
     def _fit(self) -> Alignment | None:

@@ -23,11 +23,13 @@ ESTIMATOR_IN = re.compile(r"^estimators\.([A-Za-z_0-9]+)\.")
 
 
 BASELINE = Path(__file__).resolve().parent.parent / "benchmarks" / "baseline" / "library.json"
-CI_SEEDS = 3
-"""Seeds the CI comparison runs (the first of the baseline's five): about 15 minutes on 2 cores."""
+CI_SEEDS = int(os.environ.get("RIVERBENCH_CI_SEEDS", "1"))
+"""Seeds the comparison runs (the first of the baseline's): 1 in CI, about 13 minutes on 2 cores (3 seeds took 40 min at
+2ff5144 on the machine that ran CI in 81 min, over its 45-minute budget); RIVERBENCH_CI_SEEDS=3 for the paired judgement
+over the baseline's seeds, by hand or before a release."""
 
 
-@pytest.mark.slow  # ~15 min: the library's fast variants on 3 seeds, judged metric by metric against the committed baseline
+@pytest.mark.slow  # the library's fast variants on CI_SEEDS seeds, judged metric by metric against the committed baseline
 @pytest.mark.early
 def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
     junit = tmp_path / "suite.xml"

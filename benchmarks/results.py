@@ -22,12 +22,12 @@ ROOT = Path(__file__).resolve().parent.parent
 BASELINE = ROOT / "benchmarks" / "baseline" / "library.json"
 
 
-def library_expectations(fast: bool) -> dict[str, list[str]]:
-    """Each library scenario's expectations, of the variant the baseline ran."""
+def library_checks(fast: bool, which: str) -> dict[str, list[str]]:
+    """Each library scenario's expectations (which="expect") or goals (which="goals"), of the variant the baseline ran."""
     out = {}
     for name in scenarios.available():
         s = scenarios.load(name)
-        out[name] = list((s.fast_variant() if fast else s).expect)
+        out[name] = list(getattr(s.fast_variant() if fast else s, which))
     return out
 
 
@@ -35,13 +35,14 @@ def generated(baseline_path: Path = BASELINE) -> dict[Path, str]:
     """The text each generated file must have, from the baseline."""
     base = baselines.load(baseline_path)
     readme = ROOT / "README.md"
-    results = results_markdown(base, library_expectations(base.fast))
+    results = results_markdown(base, library_checks(base.fast, "expect"), library_checks(base.fast, "goals"))
     for other in sorted(baseline_path.parent.glob("*.json")):
         if other.resolve() == Path(baseline_path).resolve():
             continue
         extra = baselines.load(other)
         title = f"{', '.join(sorted(extra.scenarios))} ({'fast variants' if extra.fast else 'full length'})"
-        results += "\n" + other_baseline_section(title, str(other.relative_to(ROOT)), extra, library_expectations(extra.fast))
+        checks = library_checks(extra.fast, "expect"), library_checks(extra.fast, "goals")
+        results += "\n" + other_baseline_section(title, str(other.relative_to(ROOT)), extra, *checks)
     return {ROOT / "docs" / "results.md": results, readme: replace_block(readme.read_text(encoding="utf-8"), library_markdown(base))}
 
 

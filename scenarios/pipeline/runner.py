@@ -174,6 +174,7 @@ def _write(
     safe = units.rounded(metrics.json_safe(tree))  # expectations judge the numbers metrics.json shows
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]
+    safe["goals"] = [o.as_goal() for o in (g.check(safe) for g in scenario.goal_checks())]
     safe = {"provenance": provenance.collect(), **safe, "units": units.block()}
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"

@@ -110,6 +110,33 @@ def expectation_table(base: Baseline, expectations: dict[str, list[str]]) -> str
     return "\n".join(lines)
 
 
+def goal_table(base: Baseline, goals: dict[str, list[str]]) -> str:
+    """Each goal (scenario -> its goals, of the variant the baseline ran) with its value at every seed of the baseline
+    and whether it was met there: the product's promises in plain sight, met or not."""
+    seeds = sorted({s for name in goals if name in base.scenarios for s in base.scenarios[name].seeds})
+    header = "| scenario | goal | " + " | ".join(f"seed {s}" for s in seeds) + " | met |"
+    lines = [header, "|:---|:---|" + "---:|" * len(seeds) + ":---|"]
+    for name in sorted(goals):
+        if name not in base.scenarios or not goals[name]:
+            continue
+        runs = base.scenarios[name]
+        for text in goals[name]:
+            goal = Expectation.parse(text)
+            values = dict(zip(runs.seeds, runs.values(goal.path, runs.seeds), strict=True))
+            refs = dict(zip(runs.seeds, runs.values(goal.ref, runs.seeds), strict=True)) if goal.ref else {}
+            cells, met = [], 0
+            for seed in seeds:
+                value, ref = values.get(seed, math.nan), refs.get(seed, math.nan)
+                ok = math.isfinite(value) and goal.holds(value, ref)
+                met += ok
+                against = f" (bound {goal.bound(ref):.3g})" if goal.ref else ""
+                cells.append("–" if not math.isfinite(value) else f"{value:.3g}{against} {'✓' if ok else '✗'}")
+            measured = sum(math.isfinite(values.get(s, math.nan)) for s in seeds)
+            verdict = "n/a" if not measured else ("yes" if met == measured else f"**no** ({met} of {measured} seeds)")
+            lines.append(f"| {name} | `{text}` | " + " | ".join(cells) + f" | {verdict} |")
+    return "\n".join(lines)
+
+
 def library_markdown(base: Baseline) -> str:
     """The README's generated block: what the library's estimators and matchers achieve, stamped."""
     return "\n".join(
@@ -139,7 +166,7 @@ def _windows_table(base: Baseline) -> str:
     return "\n".join(lines)
 
 
-def results_markdown(base: Baseline, expectations: dict[str, list[str]]) -> str:
+def results_markdown(base: Baseline, expectations: dict[str, list[str]], goals: dict[str, list[str]] | None = None) -> str:
     """docs/results.md: every generated table of the library's baseline."""
     return "\n".join(
         [
@@ -171,6 +198,7 @@ def results_markdown(base: Baseline, expectations: dict[str, list[str]]) -> str:
             "",
             cross_table(base, MONITORED, "estimators.{id}.monitor.added_5m.recall", lower_better=False),
             "",
+            *_goal_section(base, goals or {}),
             "## Expectations against the baseline",
             "",
             "Each library expectation, the values its metric took over the baseline's seeds, and the bound derived from",
@@ -191,7 +219,25 @@ def results_markdown(base: Baseline, expectations: dict[str, list[str]]) -> str:
     )
 
 
-def other_baseline_section(title: str, source: str, base: Baseline, expectations: dict[str, list[str]]) -> str:
+def _goal_section(base: Baseline, goals: dict[str, list[str]]) -> list[str]:
+    """docs/results.md's goals: every scenario's promises, met or not at each seed (empty when no scenario sets one)."""
+    if not any(goals.get(name) for name in base.scenarios):
+        return []
+    return [
+        "## Goals",
+        "",
+        "The product's promises (a scenario's `goals`, set by an issue's targets), apart from the expectations below: each",
+        "goal's value at every seed of the baseline, ✓ met, ✗ not. A goal not met is a shortfall of the algorithms, left",
+        "failing here in plain sight; goals are never re-derived from a baseline's spread and never fail a run:",
+        "",
+        goal_table(base, goals),
+        "",
+    ]
+
+
+def other_baseline_section(
+    title: str, source: str, base: Baseline, expectations: dict[str, list[str]], goals: dict[str, list[str]] | None = None
+) -> str:
     """A section of docs/results.md for a baseline besides the library's (e.g. quickstart's full-length runs)."""
     return "\n".join(
         [
@@ -205,6 +251,11 @@ def other_baseline_section(title: str, source: str, base: Baseline, expectations
             "",
             expectation_table(base, expectations),
             "",
+            *(
+                ["Goals (the scenario's promises), met (✓) or not (✗) at each seed:", "", goal_table(base, goals or {}), ""]
+                if any((goals or {}).get(name) for name in base.scenarios)
+                else []
+            ),
         ]
     )
 

@@ -82,6 +82,7 @@ def build(ctx: Context) -> list:
         *header(ctx),
         *failures(ctx),
         *expectations(ctx),
+        *goals(ctx),
         *vessel(ctx),
         *figures(ctx, "vessel"),
         *estimators(ctx),
@@ -118,6 +119,11 @@ def header(ctx: Context) -> list:
     passed = sum(bool(o.get("pass")) for o in outcomes)
     if outcomes:
         blocks.append(Text(f"Expectations: {passed} of {len(outcomes)} passed", "pass" if passed == len(outcomes) else "fail"))
+    promised = ctx.metrics.get("goals", [])
+    met = sum(g.get("met") is True for g in promised)
+    judged = sum(g.get("met") is not None for g in promised)
+    if judged:
+        blocks.append(Text(f"Goals: {met} of {judged} met", "pass" if met == judged else "fail"))
     return blocks
 
 
@@ -164,6 +170,28 @@ def expectations(ctx: Context) -> list:
     ]
     note = "Value: the metric at that dotted path of metrics.json, in the unit its `units` block gives."
     return [Heading(2, "Expectations"), Table(["expectation", "value", "unit", "result", "reason"], rows, note)]
+
+
+def goals(ctx: Context) -> list:
+    """Each goal (the product's promise) with its value and met or not: a missed goal is shown, never hidden."""
+    records = ctx.metrics.get("goals", [])
+    if not records:
+        return []
+    rows = [
+        [
+            Cell(g["goal"], css="text"),
+            Cell(num(g.get("value"), ".4g")),
+            Cell(unit_of(g["goal"].split()[0]), css="text"),
+            Cell(*{True: ("met", False, "pass"), False: ("NOT MET", False, "fail"), None: ("n/a", False, "text")}[g.get("met")]),
+            Cell(g.get("reason") or "", css="text"),
+        ]
+        for g in records
+    ]
+    note = (
+        "Goals are the scenario's promises (an issue's targets), kept apart from the expectations a baseline's spread "
+        "derives: a goal not met is a shortfall of the algorithms, reported here and in docs/results.md, and does not fail the run."
+    )
+    return [Heading(2, "Goals"), Table(["goal", "value", "unit", "result", "reason"], rows, note)]
 
 
 def unit_of(path: str) -> str:

@@ -65,7 +65,10 @@ def run_table(result) -> Group:
     for outcome in m["expectations"]:
         mark = "[green]pass[/]" if outcome["pass"] else "[bold red]FAIL[/]"
         expectations.add_row(mark, outcome["expect"], _num(outcome["value"], ".3g"))
-    return Group(table, vessel, expectations) if m["expectations"] else Group(table, vessel)
+    for goal in m.get("goals", []):
+        mark = {True: "[green]goal met[/]", False: "[yellow]goal NOT met[/]", None: "goal n/a"}[goal["met"]]
+        expectations.add_row(mark, goal["goal"], _num(goal["value"], ".3g"))
+    return Group(table, vessel, expectations) if m["expectations"] or m.get("goals") else Group(table, vessel)
 
 
 def suite_table(cases) -> Table:

@@ -94,8 +94,8 @@ FAMILIES: tuple[Family, ...] = (
     Family("heading error", ("*.yaw.*",), "lower", abs_tol=0.1, rel_tol=0.10),
     Family("compass disturbance", ("compass.disturbed", "compass.disturbed_s", "estimators.*.compass.used"), "none"),
     Family("disturbed compass used", ("estimators.*.compass.disturbed_used",), "lower", abs_tol=0.02),
-    Family("recovery time", ("estimators.*.windows.*.recover_s",), "lower", abs_tol=0.5, rel_tol=0.20),
-    Family("recovered share", ("estimators.*.windows.*.recovered",), "higher", abs_tol=0.01),
+    Family("recovery time", ("estimators.*.windows.*.recover_s", "estimators.*.windows.*.settle_s"), "lower", abs_tol=0.5, rel_tol=0.20),
+    Family("recovered share", ("estimators.*.windows.*.recovered", "estimators.*.windows.*.settled"), "higher", abs_tol=0.01),
     Family("availability", ("estimators.*.available",), "higher", abs_tol=0.005),
     Family(
         "fault detection",
@@ -214,7 +214,8 @@ def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window]) -> di
 def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray, yaw_error: np.ndarray | None = None) -> dict:
     """Per kind: count, total seconds, and the worst max error, exit error, added error and recovery
     time over its windows; `recovered` is the share of windows after which the error came back
-    (recover_s is the worst over those that did); with `yaw_error` (deg), `yaw`: the heading error's p95 and max over
+    (recover_s is the worst over those that did); `settled` the share after which it came within SETTLED_M of the truth
+    (settle_s the worst time that took over those that did); with `yaw_error` (deg), `yaw`: the heading error's p95 and max over
     the scans inside its windows, where a filter that trusted odometry or a disturbed compass shows its heading drift."""
     out = {}
     for kind in win.KINDS:
@@ -230,6 +231,8 @@ def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray, 
             "added": worst("added"),
             "recover_s": worst("recover_s"),
             "recovered": float(np.mean(recovered)) if recovered else math.nan,
+            "settle_s": worst("settle_s"),
+            "settled": float(np.mean([math.isfinite(p.settle_s) for p in passages])) if passages else math.nan,
         }
         if yaw_error is not None:
             out[kind]["yaw"] = heading_inside(mine, t, yaw_error)

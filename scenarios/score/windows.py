@@ -22,6 +22,8 @@ REACQUIRED_M = 1.0
 REACQUISITION_MAX_S = 120.0
 RECOVERED_MARGIN_M = 1.0
 """An estimate has recovered once its error is back within this of its error at the window's entry."""
+SETTLED_M = 2.0
+"""An estimate has settled once its error is within this of the truth (issue 39's promise: back within 2 m in 10 s)."""
 
 
 @dataclass(frozen=True)
@@ -79,14 +81,16 @@ def _runs(t: np.ndarray, flag: np.ndarray, period_s: float, merge_s: float) -> l
 class Passage:
     """One estimate through one window: the largest error inside it (Window.scans) or at its exit (the
     first scan after it), at entry (the last scan before it) and exit, what the window added
-    (exit - entry) and the time after the window until the error is back within
-    RECOVERED_MARGIN_M of its entry value (NaN: not within the run)."""
+    (exit - entry), the time after the window until the error is back within
+    RECOVERED_MARGIN_M of its entry value and the time until it is within SETTLED_M of the truth
+    (0 when it never left it; NaN: not within the run)."""
 
     max_error: float
     entry_error: float
     exit_error: float
     added: float
     recover_s: float
+    settle_s: float
 
 
 def passage(window: Window, t: np.ndarray, error: np.ndarray) -> Passage:
@@ -104,4 +108,6 @@ def passage(window: Window, t: np.ndarray, error: np.ndarray) -> Passage:
         back = after[error[after] <= entry + RECOVERED_MARGIN_M]
         if len(back):
             recover = max(0.0, float(t[back[0]] - window.end))
-    return Passage(max_error, entry, exit_error, exit_error - entry, recover)
+    settled = after[error[after] <= SETTLED_M] if len(after) else after
+    settle = max(0.0, float(t[settled[0]] - window.end)) if len(settled) else nan
+    return Passage(max_error, entry, exit_error, exit_error - entry, recover, settle)

@@ -60,7 +60,7 @@ def load(name_or_path: str | Path, set: list[str] | None = None, seed: int | Non
     return validate(data, path_of(name_or_path).name)
 
 
-FAST_REPLACES = ("stretch", "expect")
+FAST_REPLACES = ("stretch", "expect", "goals")
 """What a [fast] table replaces: a --set of these would be silently undone by --fast."""
 
 

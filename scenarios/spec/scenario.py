@@ -226,8 +226,9 @@ class FastVariant(BaseModel):
 
     stretch: Stretch = Field(..., description="the short stretch")
     expect: list[str] = Field(default_factory=list, description="expectations on the short stretch")
+    goals: list[str] = Field(default_factory=list, description="goals on the short stretch (see Scenario.goals)")
 
-    @field_validator("expect")
+    @field_validator("expect", "goals")
     @classmethod
     def _parse(cls, value: list[str]) -> list[str]:
         return [Expectation.parse(v).text for v in value]
@@ -274,7 +275,17 @@ class Scenario(BaseModel):
     )
     matchers: list[MatcherSpec] = Field(default_factory=_default_matchers, description="scan matchers under test")
     estimators: list[EstimatorSpec] = Field(default_factory=_default_estimators, description="estimators under test")
-    expect: list[str] = Field(default_factory=list, description="'metric op value' over dotted paths of metrics.json")
+    expect: list[str] = Field(
+        default_factory=list,
+        description="'metric op value' over dotted paths of metrics.json: the regression bounds (a baseline's spread derives "
+        "them); a run that misses one fails (exit 1)",
+    )
+    goals: list[str] = Field(
+        default_factory=list,
+        description="'metric op value' like expect: the product's promises (an issue's targets), reported met or not in "
+        "metrics.json, the report and docs/results.md, never re-derived from a baseline; a missed goal is a shortfall of "
+        "the algorithms shown in plain sight, not a failed run",
+    )
     fast: FastVariant | None = Field(None, description="the short variant `--fast` runs (run, sweep, suite)")
 
     @model_validator(mode="before")
@@ -325,8 +336,10 @@ class Scenario(BaseModel):
             )
         ids = {"estimators": set(e.id for e in self.estimators), "matchers": set(matcher_ids)}
         self.expect = [Expectation.parse(text, ids).text for text in self.expect]
+        self.goals = [Expectation.parse(text, ids).text for text in self.goals]
         if self.fast is not None:
             self.fast.expect = [Expectation.parse(text, ids).text for text in self.fast.expect]
+            self.fast.goals = [Expectation.parse(text, ids).text for text in self.fast.goals]
         return self
 
     def _inertial_sections(self) -> None:
@@ -357,18 +370,22 @@ class Scenario(BaseModel):
     @property
     def hash(self) -> str:
         """Stable identity of what runs: a digest of the resolved scenario without name and description."""
-        data = {k: v for k, v in self.resolved().items() if k not in ("name", "description", "fast")}
+        data = {k: v for k, v in self.resolved().items() if k not in ("name", "description", "fast", "goals")}
         return hashlib.sha256(json.dumps(data, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
 
     @property
     def setup_hash(self) -> str:
         """Identity of what is simulated and measured: the hash without the expectations, which judge the metrics but
         never move them (what a baseline records: re-bounding an expectation leaves its runs comparable)."""
-        data = {k: v for k, v in self.resolved().items() if k not in ("name", "description", "fast", "expect")}
+        data = {k: v for k, v in self.resolved().items() if k not in ("name", "description", "fast", "expect", "goals")}
         return hashlib.sha256(json.dumps(data, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
 
     def expectations(self) -> list[Expectation]:
         return [Expectation.parse(text) for text in self.expect]
+
+    def goal_checks(self) -> list[Expectation]:
+        """The goals, parsed: judged like expectations, reported apart (met or not), never failing a run."""
+        return [Expectation.parse(text) for text in self.goals]
 
     def fast_variant(self) -> Scenario:
         """The scenario `suite --fast` runs: its [fast] stretch and expectations, or itself without one (`run --fast` and
@@ -378,6 +395,7 @@ class Scenario(BaseModel):
         data = self.resolved()
         data["stretch"] = self.fast.stretch.model_dump(exclude_none=True)
         data["expect"] = list(self.fast.expect)
+        data["goals"] = list(self.fast.goals)
         data.pop("fast")
         return Scenario.model_validate(data)
 

@@ -16,6 +16,13 @@ from matcher.motion import ConstantVelocity, pose_to_xyzrpy
 from matcher.result import MatchResult
 from sim.scan import Scan
 
+MAX_TILT_DEG = 30.0
+"""A vessel floats upright: its roll and pitch oscillate about level with the waves (the library's sea states, up to 4,
+tilt a small catamaran by a few degrees; one heeled past 30 deg is capsizing). Odometry whose chained attitude tilts
+farther than this from the first scan's has turned the boat over: the match that would take it there is a failed one.
+gicp's chain in canal_lock's canyon pitched 1.4 deg a scan, each step a plausible rate, and passed 90 deg in 7 s, which
+the Euler yaw reads as a 180 deg turn."""
+
 
 class MatcherParams(GateParams):
     """Settings common to all matchers (gate, range band, plausibility bounds)."""
@@ -52,6 +59,7 @@ class Matcher(ABC):
         self.velocity = ConstantVelocity()
         self._ref_stamp: float | None = None
         self._velocity_stamp: float | None = None
+        self._attitude = np.eye(3)  # the reference's lidar frame in the first reference's, chained from the good matches
 
     def register(self, scan: Scan) -> MatchResult:
         """Relative motion of `scan` against the previous good scan; never raises."""
@@ -83,10 +91,11 @@ class Matcher(ABC):
         result.n_points = n
         result.info["ref_stamp"] = self._ref_stamp  # T is relative to the lidar frame at this stamp
         if result.ok:
-            reason = self._implausible(result.T, dt)
+            reason = self._implausible(result.T, dt) or self._overturned(result.T)
             if reason:
                 result = MatchResult.failure(reason, n_points=n, **result.info)
         if result.ok:
+            self._attitude = self._attitude @ np.asarray(result.T, dtype=float)[:3, :3]
             self.velocity.update(result.T, dt)
             self._velocity_stamp = cloud.stamp
         self._commit(result.ok)
@@ -104,6 +113,16 @@ class Matcher(ABC):
             return f"implausible motion: {speed:.1f} m/s > max_speed_mps {p.max_speed_mps}"
         if yaw_rate > p.max_yaw_rate_dps:
             return f"implausible motion: yaw rate {yaw_rate:.1f} deg/s > max_yaw_rate_dps {p.max_yaw_rate_dps}"
+        return ""
+
+    def _overturned(self, T: np.ndarray) -> str:
+        """Why the chained attitude after T is no boat's (tilted more than MAX_TILT_DEG from the first scan's), or ''.
+        A rotation of pi about a horizontal axis turns the heading (Euler yaw) by 0 or 180 deg at once: the yaw-rate
+        test passes the one about x; this one passes neither."""
+        up = (self._attitude @ np.asarray(T, dtype=float)[:3, :3])[2, 2]  # the first frame's z in the new frame's z
+        tilt = float(np.degrees(np.arccos(np.clip(up, -1.0, 1.0))))
+        if tilt > MAX_TILT_DEG:
+            return f"implausible attitude: chained odometry tilted {tilt:.0f} deg from the first scan's (> {MAX_TILT_DEG:g}: overturned)"
         return ""
 
     def _set_reference(self, cloud: Cloud) -> None:

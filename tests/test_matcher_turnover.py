@@ -1,0 +1,86 @@
+"""Matcher odometry that does not turn over (issue 39, item 4).
+
+canal_multipath's canyon (canal_lock): gicp started from a stopped boat (the first answer between parallel walls is
+the free direction's bias, no motion) and kept that prior along the canal; when a face across the canal measured the
+motion, keeping "stopped" moved the misfit into pitch, 1.4 deg a scan, and the chain pitched over (read as a 180 deg
+yaw). And whatever a matcher answers, a chain tilted past MAX_TILT_DEG from the first scan's is no boat's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import matcher
+import scenarios
+from matcher.base import MAX_TILT_DEG, Matcher, MatcherParams
+from matcher.cloud import Cloud
+from matcher.motion import pose_to_xyzrpy, xyzrpy_to_pose
+from matcher.result import MatchResult
+from scenarios.pipeline.assembly import assemble
+from sim.scan import POINT_DTYPE, Scan
+
+
+def test_gicp_takes_the_motion_a_face_across_the_canyon_measures_over_a_stopped_prior():
+    """canal_multipath (seed 0) from 38.8 s into the stretch, with the prior a stopped boat (what the canyon's first,
+    biased, answer leaves, 40 s earlier in the run): once a face measures the 0.19 m a scan, gicp must report it, not
+    pitch the boat."""
+    a = assemble(scenarios.load("canal_multipath"))
+    m = matcher.create("gicp")
+    t, pitch, moved = a.t_start + 38.8, 0.0, []
+    while t < a.t_start + 42.0:
+        scan = a.lidar.scan(a.world, a.trajectory, t)
+        r = m.register(scan)
+        if "first scan" in r.info.get("reason", ""):
+            m.velocity.twist_per_s = np.zeros(6)  # a stopped boat: what the canyon's first answer left
+        if r.ok:
+            truth = np.linalg.inv(a.trajectory.lidar_pose(r.info["ref_stamp"])) @ a.trajectory.lidar_pose(scan.stamp)
+            e = pose_to_xyzrpy(r.T)
+            pitch += e[4]
+            if scan.stamp > a.t_start + 41.0:
+                moved.append((e[0], pose_to_xyzrpy(truth)[0]))
+        t += a.lidar.revolution_s
+    assert abs(np.degrees(pitch)) < 1.0  # the old prior pitched it 15 deg in this second
+    est, true = np.array(moved).T
+    assert np.all(np.abs(est - true) < 0.03)
+
+
+class _Tilting(Matcher):
+    """Answers a pitch of `step_deg` every scan, nothing else."""
+
+    name = "tilting"
+
+    def __init__(self, step_deg: float) -> None:
+        super().__init__(MatcherParams())
+        self.T = xyzrpy_to_pose(np.array([0.1, 0.0, 0.0, 0.0, np.radians(step_deg), 0.0]))
+
+    def _start(self, cloud: Cloud) -> None:
+        pass
+
+    def _match(self, cloud: Cloud, dt: float) -> MatchResult:
+        return MatchResult(T=self.T.copy(), ok=True, cov=None, n_points=0, seconds=0.0)
+
+    def _commit(self, ok: bool) -> None:
+        pass
+
+    def _reset(self) -> None:
+        pass
+
+
+def _scan(stamp: float) -> Scan:
+    pts = np.zeros(1000, dtype=POINT_DTYPE)
+    rng = np.random.default_rng(0)
+    pts["x"], pts["y"], pts["z"] = (rng.uniform(5.0, 20.0, (3, 1000))).astype(np.float32)
+    return Scan(stamp=stamp, points=pts)
+
+
+@pytest.mark.parametrize("step_deg", [1.4, 40.0])
+def test_a_chain_that_tilts_past_an_upright_boat_fails(step_deg):
+    """Steady pitch steps, each within the yaw-rate bound (the Euler yaw of each is 0), fail once the chain would
+    tilt past MAX_TILT_DEG; the chain's attitude never exceeds it."""
+    m = _Tilting(step_deg)
+    results = [m.register(_scan(0.1 * k)) for k in range(60)][1:]
+    ok = np.array([r.ok for r in results])
+    allowed = int(MAX_TILT_DEG // step_deg)
+    assert ok[:allowed].all()
+    assert not ok[allowed:].any()
+    assert all("implausible attitude" in r.info["reason"] for r in results[allowed:])

@@ -179,13 +179,15 @@ class Gicp(DeskewingMatcher[_Prepared]):
     def _held(self, degeneracy: Degeneracy, sigma2: float, answer: np.ndarray, prior: np.ndarray) -> list[np.ndarray]:
         """The free translations along which the motion prior is kept. With no motion known yet (the identity
         predicted), only those the scans did not measure either: a standard deviation sqrt(sigma2 / information) of at
-        least degenerate_sigma_m, the covariance's "unknown". Never one along which GICP's `answer` moves farther from
-        "no motion" than the prior does, by more than three of its own standard deviations: the bias a free direction
-        has pulls towards no motion (the ring pattern moves with the sensor), so that answer is a measurement and the
-        prior is what is wrong. canal_lock's canyon started gicp from a stopped boat (its first answer, 0 m for 0.2 m, is
-        that bias) and kept that prior for 40 s; when a face across the canal then measured 0.20 m +- 2 cm a scan,
-        keeping 0 m moved the misfit into pitch (the face's height couples the two), 1.4 deg a scan: the chained
-        odometry pitched past 90 deg in 7 s and read as a 180 deg turn."""
+        least degenerate_sigma_m, the covariance's "unknown". Never a horizontal one (within 30 deg) along which GICP's
+        `answer` travels farther from "no motion" than the prior does, by more than three of its own standard
+        deviations: the bias a free direction has pulls towards no motion (the ring pattern moves with the sensor), so
+        that answer is a measurement and the prior is what is wrong. canal_lock's canyon started gicp from a stopped boat
+        (its first answer, 0 m for 0.2 m, is that bias) and kept that prior for 40 s; when a face across the canal then
+        measured 0.20 m +- 2 cm a scan, keeping 0 m moved the misfit into pitch (the face's height couples the two), 1.4
+        deg a scan: the chained odometry pitched past 90 deg in 7 s and read as a 180 deg turn. Not the vertical: a
+        floating hull does not travel up or down, its heave oscillates, and in rough_water's waves one scan's heave
+        taken as the vertical prior kept the boat sinking at 3 m/s."""
         known = self.velocity.twist_per_s is not None
         held = []
         for d, mu in zip(degeneracy.directions, degeneracy.direction_information, strict=True):
@@ -196,8 +198,8 @@ class Gicp(DeskewingMatcher[_Prepared]):
                 continue
             sigma = float(np.sqrt(sigma2 / mu))
             u = d[:3] / np.linalg.norm(d[:3])
-            if abs(float(answer[:3, 3] @ u)) > abs(float(prior[:3, 3] @ u)) + 3.0 * sigma:
-                continue  # motion measured beyond the prior's: not the free direction's bias
+            if abs(u[2]) < 0.5 and abs(float(answer[:3, 3] @ u)) > abs(float(prior[:3, 3] @ u)) + 3.0 * sigma:
+                continue  # travel measured beyond the prior's: not the free direction's bias
             if known or sigma >= self.p.degenerate_sigma_m:
                 held.append(d)
         return held

@@ -14,6 +14,7 @@ import matcher
 import scenarios
 from matcher.base import MAX_TILT_DEG, Matcher, MatcherParams
 from matcher.cloud import Cloud
+from matcher.covariance import Degeneracy
 from matcher.motion import pose_to_xyzrpy, xyzrpy_to_pose
 from matcher.result import MatchResult
 from scenarios.pipeline.assembly import assemble
@@ -84,3 +85,23 @@ def test_a_chain_that_tilts_past_an_upright_boat_fails(step_deg):
     assert ok[:allowed].all()
     assert not ok[allowed:].any()
     assert all("implausible attitude" in r.info["reason"] for r in results[allowed:])
+
+
+@pytest.mark.parametrize(
+    ("direction", "answer_m", "prior_m", "held"),
+    [
+        ((1.0, 0.0, 0.0), 0.20, 0.0, False),  # travel measured beyond a stopped prior (canal_multipath's cross face)
+        ((1.0, 0.0, 0.0), 0.0, 0.20, True),  # "no motion" against a moving prior: the free direction's bias
+        ((1.0, 0.0, 0.0), 0.21, 0.20, True),  # within three standard deviations of the prior
+        ((0.0, 0.0, 1.0), 0.14, -0.02, True),  # heave is no travel: rough_water's waves kept the boat sinking
+    ],
+)
+def test_gicp_keeps_its_prior_unless_the_answer_travels_beyond_it(direction, answer_m, prior_m, held):
+    m = matcher.create("gicp")
+    m.velocity.twist_per_s = np.zeros(6)  # a motion is known
+    d = np.array([*direction, 0.0, 0.0, 0.0])
+    sigma2, sigma = 1e-4, 0.02  # information sigma2 / sigma^2 along d
+    degeneracy = Degeneracy(np.zeros(3), np.zeros(3), [d], [sigma2 / sigma**2])
+    answer, prior = np.eye(4), np.eye(4)
+    answer[:3, 3], prior[:3, 3] = answer_m * d[:3], prior_m * d[:3]
+    assert (len(m._held(degeneracy, sigma2, answer, prior)) == 1) is held

@@ -10,6 +10,7 @@ from scipy.stats import chi2
 from fusion.bootstrap import HEADING_FROM_COMPASS, HEADING_FROM_COURSE, HEADING_GIVEN, HEADING_UNKNOWN, Alignment, Bootstrap
 from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
 from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix
+from fusion.integrity import protection_level
 from fusion.monitors import FixContext, Monitor
 from fusion.observation import FixObservation, screen
 from fusion.odometry import OdometryTrack
@@ -109,6 +110,13 @@ class Estimator:
             return np.full((3, 3), np.inf)
         return self._cov3()
 
+    @property
+    def protection_level(self) -> float:
+        """Horizontal protection level (m) at the params' integrity risk (fusion.integrity; NaN before initialisation)."""
+        if not self.initialized:
+            return math.nan
+        return protection_level(self._cov3()[:2, :2], self.params.integrity_risk)
+
     def add_fix(self, fix: GnssFix) -> Verdict:
         """Use one receiver output; return the monitor's verdict (untrusted fixes are not used)."""
         stamp = getattr(fix, "stamp", math.nan)
@@ -158,6 +166,12 @@ class Estimator:
         an NLOS C/N0, is no sign that the filter diverged, and no place to re-lock onto)."""
         gap = self._last_measured is None or obs.stamp - self._last_measured > 2.0
         if verdict.on_its_own and not gap:
+            return
+        if not verdict.steady and not verdict.trusted and not gap:
+            # a fix that jumps against the odometry or carries a suspect satellite: the receiver, not the filter, may be
+            # astray (a reflected signal smoothed into a ramp), so the clock restarts (quickstart: a re-lock onto a fix
+            # 30 m into such a ramp at 1767 s)
+            self._refused_since = None
             return
         if verdict.trusted or not self.initialized or gap:
             self._refused_since = None if verdict.trusted or gap else self._refused_since

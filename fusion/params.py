@@ -164,6 +164,14 @@ class EstimatorParams(BaseEstimatorParams):
         "direction is made unobserved (gicp did this under charles_river's Charlestown Bridge before its planarity "
         "weighting: no motion at all, +-1 cm, for 15 s) [3.0; 0 turns it off]",
     )
+    integrity_risk: float = Field(
+        1e-5,
+        gt=0,
+        lt=1,
+        description="probability per epoch that the horizontal error exceeds the reported protection level "
+        "(fusion.integrity) [1e-5: IMO Resolution A.1046(27)'s integrity risk for ocean, coastal and inland navigation "
+        "(1e-5 per 3 hours), taken per epoch, which is stricter]",
+    )
     relock_s: float = Field(
         30.0,
         gt=0,

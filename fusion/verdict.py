@@ -16,6 +16,10 @@ class Verdict:
     on_its_own: bool = False
     """Refused on the fix's own evidence (C/N0, HDOP), not for disagreeing with the filter: it says
     nothing about the filter having diverged, so it does not count towards a re-lock."""
+    steady: bool = True
+    """The fix moves with the odometry (its displacement from the fix a window earlier passes a tight test) and nothing
+    else refused it on the position: a run of such fixes that the filter refuses shows the filter, not the receiver, has
+    gone astray, so only such fixes count towards a re-lock and become its point."""
 
 
 @dataclass(frozen=True)

@@ -134,3 +134,72 @@ def test_registry_validates_names_and_parameters():
         monitors.create("combined", members=["combined"])
     mon = monitors.create("combined", members=["hdop", "consistency"], member_params={"hdop": {"max_hdop": 1.5}})
     assert [m.name for m in mon.members] == ["hdop", "consistency"]
+
+
+def _along_a_wall(unobserved: float = 1e6) -> OdometryTrack:
+    """A straight run east at 2 m/s whose matches leave the along-track direction unobserved (a degenerate match along a
+    quay keeps its constant-velocity prior there: the step is right, its variance 1e6 m^2)."""
+    track = OdometryTrack()
+    for t in np.arange(0.0, 40.0, 0.1):
+        track.add(float(t), np.array([0.2, 0.0, 0.0]), np.diag([unobserved, 1e-4, 1e-6]))
+    return track
+
+
+def _feed(mon, track: OdometryTrack, error_of, suspect_of=lambda t: False) -> list:
+    """Fixes at 5 Hz on the true track plus error_of(t) metres east; suspect_of(t) fixes are refused on their own
+    evidence first (as a C/N0 monitor would); every fix goes through check and commit. Returns (t, verdict) pairs."""
+    ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0)
+    out = []
+    for t in np.arange(0.0, 39.0, 0.2):
+        obs = _obs(float(t), [2.0 * t + error_of(t), 0.0], sigma=0.5)
+        verdict = mon.check(obs, ctx)
+        if suspect_of(t) and verdict.trusted:
+            verdict = fusion.Verdict(False, verdict.statistic, "suspect", on_its_own=True, steady=verdict.steady)
+        mon.commit(obs, verdict)
+        out.append((float(t), verdict))
+    return out
+
+
+def test_a_receivers_ramp_along_an_unobserved_direction_is_refused():
+    """quickstart at 1762 s: beside a quay gicp leaves the along-wall direction unobserved, and a reflected signal,
+    smoothed by the receiver's filter, ramps the fixes along it at 3 m/s after every earlier fix was refused on C/N0.
+    The window test now takes those refused fixes as anchors and bounds the unobserved direction by the
+    constant-velocity extrapolation, so the ramp is refused from its first metres; the plateau it reaches stays refused."""
+    ramp = lambda t: 0.0 if t < 20.0 else min(3.0 * (t - 20.0), 40.0)
+    verdicts = _feed(monitors.create("consistency"), _along_a_wall(), ramp, suspect_of=lambda t: 12.0 <= t < 20.0)
+    off = [(t, v) for t, v in verdicts if ramp(t) > 3.0]
+    assert off and not any(v.trusted for _, v in off)
+    assert not any(v.steady for t, v in verdicts if 21.5 <= t < 33.0)  # the ramp never counts towards a re-lock
+
+
+def test_a_constant_velocity_run_along_an_unobserved_direction_is_trusted():
+    """The bound does not refuse good fixes where the extrapolation holds."""
+    verdicts = _feed(monitors.create("consistency"), _along_a_wall(), lambda t: 0.0)
+    assert all(v.trusted for t, v in verdicts if t >= 5.0)
+
+
+def test_a_reference_starts_from_fixes_refused_only_on_their_own_evidence():
+    """gps_jump: every fix of open water carried a weak satellite, so no fix was ever trusted and the consistency monitor
+    had no reference; the first trusted fix was the jump's. A fix refused on its own evidence now starts the reference,
+    and the jump against it is refused."""
+    jump = lambda t: 15.0 if 20.0 <= t < 30.0 else 0.0
+    verdicts = _feed(monitors.create("consistency"), _along_a_wall(unobserved=1e-4), jump, suspect_of=lambda t: t < 20.0)
+    assert not any(v.trusted for t, v in verdicts if 20.0 <= t < 30.0)
+
+
+def test_a_combined_verdict_is_on_its_own_evidence_only_when_every_refusal_is():
+    from fusion.monitors.combined import CombinedMonitor, CombinedParams
+
+    class Fixed(monitors.Monitor):
+        def __init__(self, verdict):
+            self.verdict = verdict
+
+        def check(self, obs, ctx):
+            return self.verdict
+
+    suspect = fusion.Verdict(False, 9.0, "weak", on_its_own=True)
+    disagrees = fusion.Verdict(False, 50.0, "jump", steady=False)
+    both = CombinedMonitor(CombinedParams(), [Fixed(suspect), Fixed(disagrees)]).check(_obs(0.0, [0, 0]), None)
+    assert not both.trusted and not both.on_its_own and not both.steady
+    alone = CombinedMonitor(CombinedParams(), [Fixed(suspect), Fixed(fusion.Verdict(True, 0.1, "ok"))]).check(_obs(0.0, [0, 0]), None)
+    assert not alone.trusted and alone.on_its_own and alone.steady

@@ -16,7 +16,7 @@ from scenarios.report import document
 from scenarios.report import run_report as report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-PLOTS = ("map", "error", "hdop_error", "yaw", "matchers")
+PLOTS = ("map", "error", "hdop_error", "yaw", "stanford", "matchers")
 BLACKOUT = (110.0, 120.0)
 HEADING = 0.3  # rad
 OFFSET_M = 1.0
@@ -154,10 +154,13 @@ def make_run(run_dir, scans: int = 400) -> dict:
             int(100 <= i < 120),
             5000 + 10 * (i % 30),
             "12.00",
+            "6.000",
+            "" if i < 10 else f"{1.5 + 0.01 * i:.3f}",
         ]
         for i in range(scans)
     ]
-    write_csv(run_dir / "scans.csv", ["t", "x", "y", "z", "yaw_deg", "icp.ok", "icp.gated", "icp.degenerate", "icp.points", "icp.ms"], scan_rows)
+    header = ["t", "x", "y", "z", "yaw_deg", "icp.ok", "icp.gated", "icp.degenerate", "icp.points", "icp.ms", "gps_only.hpl", "ekf.hpl"]
+    write_csv(run_dir / "scans.csv", header, scan_rows)
     (run_dir / "scenario.toml").write_text(
         'name = "synthetic"\ndescription = "a straight line with one bridge"\nseed = 3\n'
         'world = "charles_river"\n\n[stretch]\nstart_s = 100.0\nend_s = 140.0\n\n'
@@ -185,6 +188,14 @@ def make_run(run_dir, scans: int = 400) -> dict:
             "yaw": stats([0.5, 0.5]),
             "windows": {"blackout": windows, "nlos": no_window, "reacquisition": no_window, "injected": no_window},
             "monitor": {"error_5m": monitor, "added_5m": monitor},
+            "integrity": {
+                "alert_limit_m": 10.0,
+                "hpl": stats([6.0]),
+                "misleading": 0.01,
+                "misleading_epochs": 3,
+                "hazardous_epochs": 0,
+                "available": 0.9,
+            },
             "failed": False,
         }
 
@@ -235,6 +246,11 @@ def make_run(run_dir, scans: int = 400) -> dict:
                 "failed_at": 130.0,
             }
         },
+        "goals": [
+            {"goal": "estimators.ekf.ape.p95 <= estimators.gps_only.ape.p95 + 0.1", "value": 1.0, "met": True, "reason": ""},
+            {"goal": "estimators.ekf.ape.p95 <= 0.5", "value": 1.0, "met": False, "reason": "estimators.ekf.ape.p95 = 1, expected <= 0.5"},
+            {"goal": "estimators.ekf.monitor.added_5m.recall >= 0.95", "value": None, "met": None, "reason": "nothing to measure"},
+        ],
         "expectations": [
             {"expect": "estimators.ekf.ape.p95 < 6", "value": 1.0, "pass": True, "reason": ""},
             {
@@ -292,13 +308,15 @@ def test_markdown_holds_expectations_tables_and_plot_links(run_dir):
         assert f"](plots/{stem}.png)" in text
     assert "Failures" in text and "boom" in text
     assert "None" not in text and "nan" not in text.lower()
+    assert "## Goals" in text and "Goals: 1 of 2 met" in text and "NOT MET" in text and "| n/a |" in text
+    assert "### Integrity" in text and "HPL p95 (m)" in text
 
 
 def test_best_value_per_column_is_bold_and_nulls_are_dashes(run_dir):
     text = (run_dir / "report.md").read_text()
     ekf_rows = [line for line in text.splitlines() if line.startswith("| ekf |")]
     gps_only_rows = [line for line in text.splitlines() if line.startswith("| gps_only |")]
-    assert len(ekf_rows) == len(gps_only_rows) == 2  # accuracy, and through GPS degradation
+    assert len(ekf_rows) == len(gps_only_rows) == 3  # accuracy, through GPS degradation, integrity
     assert ekf_rows[0].split("|")[3].strip() == f"**{OFFSET_M:.2f}**"  # APE rmse: the 1 m offset beats the blackout's drift
     assert "**" not in gps_only_rows[0].split("|")[3]
     assert ekf_rows[1].split("|")[2].strip() == "**1.00**"  # blackout max

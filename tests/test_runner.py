@@ -236,3 +236,24 @@ def test_refuses_a_non_empty_output_directory(tmp_path):
     with pytest.raises(ValueError, match="not empty"):
         scenarios.run(short(), tmp_path / "run", report=False)
     assert (tmp_path / "run" / "keep.txt").read_text() == "mine"
+
+
+def test_every_scan_has_each_estimators_protection_level_and_the_metrics_score_it(short_run):
+    """scans.csv's <id>.hpl is the level each estimator reported at that scan; metrics.json's integrity figures are those
+    of the levels against the errors of the TUM files (scenarios.score.metrics.integrity_metrics)."""
+    from scenarios.score.metrics import integrity_metrics
+
+    with open(short_run.out_dir / "scans.csv") as f:
+        rows = list(csv.DictReader(f))
+    truth = files.read_tum(short_run.out_dir / "groundtruth.tum", scenario_time=True)
+    for e in short_run.scenario.estimators:
+        level = np.array([float(r[f"{e.id}.hpl"]) if r[f"{e.id}.hpl"] else np.nan for r in rows])
+        assert np.isfinite(level).mean() > 0.5 and (level[np.isfinite(level)] > 0).all()
+        est = files.read_tum(short_run.out_dir / f"{e.id}.tum", scenario_time=True)
+        at = np.searchsorted(truth[:, 0], est[:, 0] - 1e-6)
+        error = np.full(len(rows), np.nan)
+        error[at] = np.hypot(est[:, 1] - truth[at, 1], est[:, 2] - truth[at, 2])
+        expected = integrity_metrics(error, level, short_run.scenario.integrity.alert_limit_m)
+        node = short_run.metrics["estimators"][e.id]["integrity"]
+        assert node["misleading_epochs"] == expected["misleading_epochs"] and node["hazardous_epochs"] == expected["hazardous_epochs"]
+        assert node["available"] == pytest.approx(expected["available"], abs=1e-4)

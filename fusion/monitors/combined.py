@@ -1,5 +1,6 @@
 """Monitors 'combined' (default nis + consistency) and 'combined_cn0' (default consistency + cn0): distrust a
-fix when any member monitor does."""
+fix when any member monitor does. The verdict is on the fix's own evidence only when every refusing member's is (a member
+that finds the fix at odds with the filter speaks for divergence), and steady when every member's is (fusion.Verdict)."""
 
 from __future__ import annotations
 
@@ -50,9 +51,9 @@ class CombinedMonitor(Monitor):
         statistic = max(finite) if finite else math.nan
         refused = [f"{m.name}: {v.reason}" for m, v in zip(self.members, verdicts) if not v.trusted]
         if refused:
-            on_its_own = any(v.on_its_own for v in verdicts if not v.trusted)
-            return Verdict(False, statistic, "; ".join(refused), on_its_own=on_its_own)
-        return Verdict(True, statistic, "all members trust it")
+            on_its_own = all(v.on_its_own for v in verdicts if not v.trusted)  # a member that disagrees with the filter speaks for divergence
+            return Verdict(False, statistic, "; ".join(refused), on_its_own=on_its_own, steady=all(v.steady for v in verdicts))
+        return Verdict(True, statistic, "all members trust it", steady=all(v.steady for v in verdicts))
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
         for m in self.members:

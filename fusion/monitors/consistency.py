@@ -15,6 +15,21 @@ untrusted for at least `guard_s` and until `guard_n` consecutive fixes pass both
 tighter `guard_gate_prob` gate (the receiver's track moves with the odometry again and agrees with
 the reference). The window test for the verdict uses trusted fixes only, so the end of a fault is
 not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard.
+The window test compares with the fix about `window_s` earlier that was trusted or refused only on its own evidence
+(an NLOS C/N0: its position is still a measurement): a receiver whose filter smooths a reflected signal into a ramp of
+metres per second shows the ramp in consecutive fixes while a suspect-satellite monitor may flag some and miss others
+(quickstart at 1764.7 s: 12.9 m and rising 8 m/s, trusted because every earlier fix had been refused on C/N0 and the
+window held no trusted one). The price: the first good fix after a fault refused on C/N0 alone is refused for up to
+twice `window_s`, as it jumps back.
+Where the odometry leaves a direction unobserved (a degenerate match between walls or along a quay keeps its
+constant-velocity prior there, and the filter gives that direction 1e6 m^2), both tests take the displacement there as
+that extrapolation, uncertain by a speed error growing from the last trusted fix plus the motion model's acceleration
+(see _bounded); with 1e6 m^2 a receiver's ramp along a quay passed both. The price: where the vessel changes speed while
+the match is degenerate, the extrapolation errs and good fixes are refused until the re-lock (canal_multipath).
+A fix refused only on its own evidence starts a reference where there is none, so a receiver whose every fix carries a
+weak satellite (tree-lined banks) still gets one.
+Steady (Verdict.steady): the fix's displacement from the fix a window earlier passes the guard's tight gate; the host
+counts only steady refused fixes towards a re-lock, so it never re-locks onto a receiver's ramp.
 Two fixes dt apart have errors correlated by rho = exp(-dt / correlation_s) (the host's
 gps_correlation_s), so their displacement's noise is (C_a + C_b)(1 - rho), floored; the
 reference weighs each trusted fix as a share dt / correlation_s of an independent one.
@@ -53,6 +68,20 @@ class ConsistencyParams(BaseModel):
         0.9, gt=0.5, lt=1.0, description="chi-square (2 dof) probability of the tighter gate during the guard [0.9, gate at 4.6]"
     )
     max_speed_mps: float = Field(5.0, gt=0, description="bounds the unknown motion where the odometry does not cover a step, m/s [5]")
+    unobserved_speed_sigma_mps: float = Field(
+        0.3,
+        gt=0,
+        description="where the odometry leaves a direction unobserved (a degenerate match keeps its constant-velocity prior "
+        "there, with a variance of 1e6 m^2 for the filter), its displacement over dt is taken as that extrapolation, "
+        "uncertain by this speed error times dt plus the motion model's white acceleration, m/s [0.3: the speed a filter "
+        "holds from GPS and odometry before the degeneracy]",
+    )
+    accel_sigma: float = Field(
+        0.2,
+        gt=0,
+        description="white acceleration of the motion model bounding an unobserved direction's displacement (variance "
+        "accel_sigma^2 dt^3 / 3), m/s^2/sqrt(Hz) [0.2: the ekf's and pf's own accel_sigma]",
+    )
     min_diff_sigma_m: float = Field(
         0.3,
         gt=0,
@@ -73,7 +102,7 @@ class ConsistencyMonitor(Monitor):
         self.reset()
 
     def reset(self) -> None:
-        self._history: deque[tuple[FixObservation, bool]] = deque()  # recent fixes and whether trusted
+        self._history: deque[tuple[FixObservation, bool]] = deque()  # recent fixes and whether an anchor (trusted or refused on its own evidence)
         self._ref: tuple[float, np.ndarray, np.ndarray] | None = None  # stamp, antenna xy, 2x2 cov
         self._ref_trusted_at = -math.inf
         self._last_measured: float | None = None
@@ -81,16 +110,34 @@ class ConsistencyMonitor(Monitor):
         self._guard_passes = 0
         self._pending: tuple[bool, tuple | None, float, float] = (False, None, math.nan, 1.0)
 
-    def _moved(self, t_a: float, t_b: float, ctx: FixContext) -> tuple[np.ndarray, np.ndarray] | None:
-        """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance."""
+    def _moved(self, t_a: float, t_b: float, ctx: FixContext, since: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance; `since` (default t_a):
+        when the track being carried was last anchored by a fix, from which an unobserved direction's speed error grows."""
         moved = ctx.odometry.displacement(t_a, t_b, ctx.lever)
         if moved is None or ctx.yaw is None:
             return None
         d_odo, cov_odo, odo_yaw = moved
+        cov_odo = self._bounded(cov_odo, t_a, t_b, t_a if since is None else since)
         offset = ctx.yaw - odo_yaw
         rot = rot2(offset)
         j_yaw = drot2(offset) @ d_odo
         return rot @ d_odo, rot @ cov_odo @ rot.T + np.outer(j_yaw, j_yaw) * (ctx.yaw_var or 0.0)
+
+    def _bounded(self, cov: np.ndarray, t_a: float, t_b: float, since: float) -> np.ndarray:
+        """The odometry displacement's covariance with each direction's variance at most what a constant-velocity
+        extrapolation from t_a to t_b allows (a degenerate match's prior along a wall or under a deck is that
+        extrapolation; the filter's 1e6 m^2 there would blind both tests in that direction, and a receiver's NLOS ramp
+        along a quay passed them: quickstart at 1762 s, 2 m/s along the wall, reference sigma 950 m). The speed error's
+        share grows with the time since the carried track was anchored, so a reference carried step by step gets the
+        (sigma_v (t_b - since))^2 a single carry would."""
+        p = self.params
+        dt = abs(t_b - t_a)
+        speed = p.unobserved_speed_sigma_mps**2 * ((t_b - since) ** 2 - (t_a - since) ** 2)
+        cap = max(speed, 0.0) + p.accel_sigma**2 * dt**3 / 3.0
+        values, vectors = np.linalg.eigh(0.5 * (cov + cov.T))
+        if values[-1] <= cap:
+            return cov
+        return (vectors * np.minimum(values, cap)) @ vectors.T
 
     def _distance(self, ref: FixObservation, obs: FixObservation, ctx: FixContext) -> float:
         """Mahalanobis distance squared of the GPS displacement from ref to obs against the odometry's."""
@@ -107,17 +154,18 @@ class ConsistencyMonitor(Monitor):
         if self._ref is None or obs.stamp - self._ref_trusted_at > self.params.reference_max_age_s:
             return None
         stamp, xy, cov = self._ref
-        moved = self._moved(stamp, obs.stamp, ctx)
+        moved = self._moved(stamp, obs.stamp, ctx, since=self._ref_trusted_at)
         if moved is None:  # odometry does not cover the step: unknown motion up to max_speed_mps
             spread = (self.params.max_speed_mps * (obs.stamp - stamp)) ** 2
             return obs.stamp, xy, cov + np.eye(2) * spread
         return obs.stamp, xy + moved[0], cov + moved[1]
 
-    def _window_reference(self, stamp: float, trusted_only: bool) -> FixObservation | None:
-        """The kept fix nearest to `window_s` before stamp (within half to twice that), or None."""
+    def _window_reference(self, stamp: float, anchors_only: bool) -> FixObservation | None:
+        """The kept fix nearest to `window_s` before stamp (within half to twice that), or None; with anchors_only, among
+        the fixes trusted or refused on their own evidence only."""
         target, best = stamp - self.params.window_s, None
-        for old, trusted in self._history:
-            if trusted_only and not trusted:
+        for old, anchor in self._history:
+            if anchors_only and not anchor:
                 continue
             in_window = stamp - 2.0 * self.params.window_s <= old.stamp <= stamp - 0.5 * self.params.window_s
             if in_window and (best is None or abs(old.stamp - target) < abs(best.stamp - target)):
@@ -127,8 +175,8 @@ class ConsistencyMonitor(Monitor):
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         gap = self._last_measured is None or obs.stamp - self._last_measured >= self.params.gap_s
         # window test against a trusted fix (for the verdict) and against any fix (for the guard)
-        trusted_ref = None if gap else self._window_reference(obs.stamp, trusted_only=True)
-        any_ref = None if gap else self._window_reference(obs.stamp, trusted_only=False)
+        trusted_ref = None if gap else self._window_reference(obs.stamp, anchors_only=True)
+        any_ref = None if gap else self._window_reference(obs.stamp, anchors_only=False)
         window_d2 = math.nan if trusted_ref is None else self._distance(trusted_ref, obs, ctx)
         guard_d2 = math.nan if any_ref is None else self._distance(any_ref, obs, ctx)
         ref = self._reference_at(obs, ctx)
@@ -140,6 +188,7 @@ class ConsistencyMonitor(Monitor):
         if ctx.correlation_s > 0 and self._last_measured is not None:
             weight = min(1.0, max(obs.stamp - self._last_measured, 1e-3) / ctx.correlation_s)
         self._pending = (gap, ref, max([d for d in (guard_d2, ref_d2) if not math.isnan(d)], default=math.nan), weight)
+        steady = guard_d2 <= self.guard_gate  # moves with the odometry since the fix a window earlier (NaN: unknown, not steady)
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
@@ -147,12 +196,12 @@ class ConsistencyMonitor(Monitor):
         in_guard = guard_from is not None and (obs.stamp - guard_from < self.params.guard_s or passes < self.params.guard_n)
         if tests and statistic > self.gate:
             which = "window" if window_d2 == statistic else "reference"
-            return Verdict(False, statistic, f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}")
+            return Verdict(False, statistic, f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}", steady=steady)
         if in_guard:
-            return Verdict(False, statistic, f"re-acquisition guard ({passes}/{self.params.guard_n} consistent)")
+            return Verdict(False, statistic, f"re-acquisition guard ({passes}/{self.params.guard_n} consistent)", steady=steady)
         if not tests:
-            return Verdict(True, statistic, "unchecked: no odometry or reference to compare")
-        return Verdict(True, statistic, "displacement consistent")
+            return Verdict(True, statistic, "unchecked: no odometry or reference to compare", steady=steady)
+        return Verdict(True, statistic, "displacement consistent", steady=steady)
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
         gap, ref, guard_d2, weight = self._pending
@@ -165,11 +214,14 @@ class ConsistencyMonitor(Monitor):
             if obs.stamp - self._guard_start >= self.params.guard_s and self._guard_passes >= self.params.guard_n:
                 self._guard_start = None
         self._last_measured = obs.stamp
-        self._history.append((obs, verdict.trusted))
+        self._history.append((obs, verdict.trusted or verdict.on_its_own))
         while self._history and self._history[0][0].stamp < obs.stamp - 2.0 * self.params.window_s:
             self._history.popleft()
         self._ref = ref
-        if verdict.trusted:
+        # a fix refused only on its own evidence starts a reference where there is none (C/N0 alone says nothing of the
+        # position; without it a receiver whose every fix looked suspect, as open water's tree-lined banks make them,
+        # never had a reference to judge one against)
+        if verdict.trusted or (verdict.on_its_own and self._ref is None):
             if self._ref is None:
                 self._ref = (obs.stamp, obs.xy.copy(), obs.cov.copy())
             else:

@@ -179,15 +179,17 @@ class Feed:
         for mid, why in errors.items():
             self.recorder.failure("matcher", mid, event.stamp, f"{self.refs[mid]}: {why}")
 
-        def step(eid: str, est) -> np.ndarray:
-            """Feed one estimator its matcher's result (none for gps_only) and read its pose."""
+        def step(eid: str, est) -> tuple[np.ndarray, float]:
+            """Feed one estimator its matcher's result (none for gps_only) and read its pose and protection level."""
             if self.feeds[eid]:
                 est.add_match(event.stamp, results[self.feeds[eid]])
-            return checked_pose(est.pose)
+            return checked_pose(est.pose), checked_level(getattr(est, "protection_level", math.nan))
 
-        poses = self._each_estimator(step, event.stamp)
-        truth, estimates = self.base_pose(event.stamp), {eid: poses.get(eid, nan_pose()) for eid in self.estimators}
-        self.recorder.scan(event.stamp, truth, results, estimates)
+        stepped = self._each_estimator(step, event.stamp)
+        truth = self.base_pose(event.stamp)
+        estimates = {eid: stepped[eid][0] if eid in stepped else nan_pose() for eid in self.estimators}
+        levels = {eid: stepped[eid][1] if eid in stepped else math.nan for eid in self.estimators}
+        self.recorder.scan(event.stamp, truth, results, estimates, levels)
         if self.observer is not None:
             self.observer.scan(event, truth, estimates)
         if self.on_scan is not None:
@@ -226,6 +228,14 @@ def checked_pose(pose) -> np.ndarray:
     if matrix.shape != (4, 4):
         raise TypeError(f"pose has shape {matrix.shape}, not (4, 4)")
     return matrix
+
+
+def checked_level(level) -> float:
+    """An estimator's horizontal protection level in metres (NaN when it reports none), or a TypeError."""
+    try:
+        return float(level)
+    except (TypeError, ValueError):
+        raise TypeError(f"protection_level is a {type(level).__name__}, not a number") from None
 
 
 def checked_verdict(verdict) -> Verdict:

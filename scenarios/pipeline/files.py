@@ -124,17 +124,24 @@ def write_windows_csv(path: Path, windows: list[win.Window], rec: RunRecord, err
 
 
 def write_scans_csv(path: Path, rec: RunRecord) -> None:
-    """One row per scan: the true pose (x, y, z, yaw) and per matcher ok, gated, degenerate, points, ms."""
+    """One row per scan: the true pose (x, y, z, yaw), per matcher ok, gated, degenerate, points, ms, and per estimator that
+    reports one its horizontal protection level (<id>.hpl, m; empty where it had none)."""
     mids = list(rec.matches)
+    levels = {e: hpl for e, hpl in rec.protection.items() if np.isfinite(hpl).any()}
     with open(path, "w", newline="") as handle:
         w = csv.writer(handle)
-        w.writerow(["t", "x", "y", "z", "yaw_deg"] + [f"{m}.{k}" for m in mids for k in ("ok", "gated", "degenerate", "points", "ms")])
+        w.writerow(
+            ["t", "x", "y", "z", "yaw_deg"]
+            + [f"{m}.{k}" for m in mids for k in ("ok", "gated", "degenerate", "points", "ms")]
+            + [f"{e}.hpl" for e in levels]
+        )
         yaw = np.degrees(np.arctan2(rec.truth[:, 1, 0], rec.truth[:, 0, 0])) if len(rec.scan_t) else np.zeros(0)
         for i, t in enumerate(rec.scan_t):
             row = [f"{t:.3f}", *_fmt(rec.truth[i, :3, 3], 3), f"{yaw[i]:.3f}"]
             for m in mids:
                 track = rec.matches[m]
                 row += [int(track.ok[i]), int(track.gated[i]), int(track.degenerate[i]), int(track.points[i]), f"{1e3 * track.seconds[i]:.2f}"]
+            row += [f"{hpl[i]:.3f}" if np.isfinite(hpl[i]) else "" for hpl in levels.values()]
             w.writerow(row)
 
 

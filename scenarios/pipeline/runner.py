@@ -170,7 +170,7 @@ def _write(
     scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel: dict, fix_period: float, report: bool
 ) -> tuple[dict, list[Outcome]]:
     windows = win.find(rec.fixes, rec.injected, fix_period)
-    tree = metrics.compute(rec, windows, run_info, vessel)
+    tree = metrics.compute(rec, windows, run_info, vessel, scenario.integrity.alert_limit_m)
     safe = units.rounded(metrics.json_safe(tree))  # expectations judge the numbers metrics.json shows
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]

@@ -21,7 +21,7 @@ from fusion.observation import POSITION_QUALITIES
 from riverbench.angles import wrap_angle
 from riverbench.atomic import atomic_path
 from scenarios.pipeline import files
-from scenarios.report import world_map
+from scenarios.report import stanford, world_map
 
 WINDOW_COLOURS = {"blackout": "#d62728", "nlos": "#ff7f0e", "reacquisition": "#e6c229", "injected": "#9467bd"}
 """Shading and highlight colour of each GPS-degradation window kind."""
@@ -50,6 +50,9 @@ PLOTS = {
     "hdop_error": "HDOP against the true horizontal error of each measured fix, fixes that used a reflected (NLOS) signal in orange: "
     "an HDOP threshold only helps where the faulty fixes (above the dotted line) sit at high HDOP.",
     "yaw": "Yaw error (estimate minus truth, wrapped to ±180°) against time; windows shaded.",
+    "stanford": "Stanford diagram per estimator: each scan's horizontal error against the protection level the estimator reported "
+    "for it (fusion.integrity), coloured by epochs per cell; above the diagonal the level failed to bound the error (misleading "
+    "information), beyond the dashed alert limit on the error axis while the level was inside it, hazardously.",
     "matchers": "Scan matchers: points per scan (top), the wall-clock time of each registration, a running median over about a second "
     "(middle), and each registration's outcome (bottom, one row per matcher); GPS-degradation windows shaded.",
 }
@@ -88,9 +91,12 @@ class RunSeries:
     windows: list[Window]
     hdop_limits: dict[str, float]
     world: list[world_map.Footprint] = field(default_factory=list)
+    alert_limit_m: float = 10.0
 
 
-def load(run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_limits: dict[str, float], world=None) -> RunSeries:
+def load(
+    run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_limits: dict[str, float], world=None, alert_limit_m: float = 10.0
+) -> RunSeries:
     """Read the trajectories, gps.csv, scans.csv and windows.csv of a run directory; with its `world`, the parts under the map."""
     truth = read_tum(run_dir / "groundtruth.tum")
     windows = read_csv(run_dir / "windows.csv")
@@ -104,6 +110,7 @@ def load(run_dir: Path, estimator_ids: list[str], matcher_ids: list[str], hdop_l
         windows=[Window(k, float(s), float(e)) for k, s, e in zip(windows.get("kind", []), windows.get("start", []), windows.get("end", []))],
         hdop_limits=hdop_limits,
         world=world_map.footprints(world, overview_extent(truth)) if world is not None and len(truth.t) else [],
+        alert_limit_m=alert_limit_m,
     )
 
 
@@ -162,7 +169,14 @@ def colours(series: RunSeries) -> dict[str, str]:
 
 def write_all(series: RunSeries, plots_dir: Path) -> dict[str, str]:
     """Draw every figure that has data into plots_dir/<stem>.png; returns {relative path: caption}."""
-    drawers = {"map": map_figure, "error": error_figure, "hdop_error": hdop_figure, "yaw": yaw_figure, "matchers": matchers_figure}
+    drawers = {
+        "map": map_figure,
+        "error": error_figure,
+        "hdop_error": hdop_figure,
+        "yaw": yaw_figure,
+        "stanford": stanford_figure,
+        "matchers": matchers_figure,
+    }
     written = {}
     for stem, draw in drawers.items():
         figure = draw(series)
@@ -379,6 +393,20 @@ def error_figure(series: RunSeries) -> Figure | None:
     ax.grid(alpha=0.3)
     ax.legend(handles=[*handles, *patches], loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
     return figure
+
+
+def stanford_figure(series: RunSeries) -> Figure | None:
+    """Error against protection level for each estimator whose scans.csv column holds levels (scenarios.report.stanford)."""
+    epochs = {}
+    scan_t = series.scans.get("t", np.zeros(0))
+    for name, track in series.estimates.items():
+        level = series.scans.get(f"{name}.hpl")
+        if level is None or not len(track.t) or not len(scan_t):
+            continue
+        # the TUM file holds the scans with an estimate; scans.csv every scan: the level at each pose's scan
+        at = np.clip(np.searchsorted(scan_t, track.t - 1e-6), 0, len(scan_t) - 1)
+        epochs[name] = stanford.Epochs.of(horizontal_error(track, series.truth), np.where(np.abs(scan_t[at] - track.t) < 1e-3, level[at], np.nan))
+    return stanford.figure(epochs, series.alert_limit_m, "Protection levels", WIDTH_IN)
 
 
 def hdop_figure(series: RunSeries) -> Figure | None:

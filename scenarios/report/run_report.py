@@ -36,7 +36,10 @@ def write(run_dir: Path, scenario=None) -> None:
     run_dir = Path(run_dir)
     metrics = json.loads((run_dir / "metrics.json").read_text())
     info = scenario_info(run_dir, scenario)
-    series = plots.load(run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info), world_map.load(info))
+    alert_limit = float((info.get("integrity") or {}).get("alert_limit_m", plots.RunSeries.alert_limit_m))
+    series = plots.load(
+        run_dir, list(metrics.get("estimators", {})), list(metrics.get("matchers", {})), hdop_limits(info), world_map.load(info), alert_limit
+    )
     images = plots.write_all(series, run_dir / "plots")
     vessel_node = metrics.get("vessel", {})
     images |= vessel_plot.write(run_dir, float(vessel_node.get("clearance_threshold_m") or 0.0), vessel_node)
@@ -86,7 +89,7 @@ def build(ctx: Context) -> list:
         *vessel(ctx),
         *figures(ctx, "vessel"),
         *estimators(ctx),
-        *figures(ctx, "map", "error", "yaw"),
+        *figures(ctx, "map", "error", "yaw", "stanford"),
         *gps(ctx),
         *figures(ctx, "hdop_error"),
         *windows(ctx),
@@ -281,6 +284,14 @@ MONITOR_COLUMNS = [
     Column("recall", get("monitor.added_5m.recall"), share, "high"),
     Column("false alarms", get("monitor.added_5m.false_alarm_rate"), share, ranked_if=_recall_defined),
 ]
+INTEGRITY_COLUMNS = [
+    Column("HPL median (m)", get("integrity.hpl.median"), metres, None),
+    Column("HPL p95 (m)", get("integrity.hpl.p95"), metres, None),
+    Column("misleading", get("integrity.misleading"), share),
+    Column("misleading epochs", get("integrity.misleading_epochs"), lambda v: num(v, ".0f")),
+    Column("hazardous epochs", get("integrity.hazardous_epochs"), lambda v: num(v, ".0f")),
+    Column("available (HPL < AL)", get("integrity.available"), share, "high"),
+]
 DEGRADATION_COLUMNS = [*WINDOW_COLUMNS, *MONITOR_COLUMNS]
 WINDOW_NOTE = (
     "Worst horizontal error (m) inside any window of that kind, and at a blackout's end (exit); yaw: the heading "
@@ -322,7 +333,22 @@ def estimators(ctx: Context) -> list:
     if columns:
         note = " ".join([*notes, "Bold: best in its column."])
         blocks += [Heading(3, "Through GPS degradation"), ranked_table("estimator", nodes, columns, labels, note)]
-    return blocks
+    return blocks + integrity(ctx)
+
+
+def integrity(ctx: Context) -> list:
+    """The protection levels' standard figures, a row per estimator that reports one (none: no block)."""
+    nodes = {eid: n for eid, n in ctx.metrics.get("estimators", {}).items() if (n.get("integrity") or {}).get("misleading") is not None}
+    if not nodes:
+        return []
+    alert = next(iter(nodes.values()))["integrity"].get("alert_limit_m")
+    note = (
+        f"Each estimator's horizontal protection level (HPL) at its integrity risk (fusion.integrity), per scan: misleading, "
+        f"the share of scans whose error exceeded it; hazardous, those whose error exceeded the alert limit ({num(alert, 'g')} m) "
+        f"while HPL was below it; available, the share of the run's scans with HPL below the alert limit. Bold: best in its column."
+    )
+    labels = {eid: _failed_label(eid, n) for eid, n in nodes.items()}
+    return [Heading(3, "Integrity"), ranked_table("estimator", nodes, INTEGRITY_COLUMNS, labels, note)]
 
 
 def _without_monitor(node: dict) -> dict:

@@ -65,6 +65,7 @@ FAMILIES: tuple[Family, ...] = (
             "matchers.*.gated",
             "matchers.*.points.*",
             "vessel.clearance_threshold_m",
+            "estimators.*.integrity.alert_limit_m",
             "vessel.distance_m",
             "vessel.collision_t",
             "vessel.min_clearance_t",
@@ -96,7 +97,10 @@ FAMILIES: tuple[Family, ...] = (
     Family("disturbed compass used", ("estimators.*.compass.disturbed_used",), "lower", abs_tol=0.02),
     Family("recovery time", ("estimators.*.windows.*.recover_s", "estimators.*.windows.*.settle_s"), "lower", abs_tol=0.5, rel_tol=0.20),
     Family("recovered share", ("estimators.*.windows.*.recovered", "estimators.*.windows.*.settled"), "higher", abs_tol=0.01),
-    Family("availability", ("estimators.*.available",), "higher", abs_tol=0.005),
+    Family("availability", ("estimators.*.available", "estimators.*.integrity.available"), "higher", abs_tol=0.005),
+    Family("protection level", ("estimators.*.integrity.hpl.*",), "none"),
+    Family("misleading information", ("estimators.*.integrity.misleading",), "lower", abs_tol=0.002),
+    Family("misleading epochs", ("estimators.*.integrity.misleading_epochs", "estimators.*.integrity.hazardous_epochs"), "lower", abs_tol=2.0),
     Family(
         "fault detection",
         ("estimators.*.monitor.*.recall", "estimators.*.monitor.*.recall_at_5pct_fa", "estimators.*.monitor.*.precision"),
@@ -192,7 +196,11 @@ def align_se2(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return motion @ estimate
 
 
-def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window]) -> dict:
+ALERT_LIMIT_M = 10.0
+"""The default horizontal alert limit (scenarios.spec.scenario.IntegrityConfig)."""
+
+
+def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window], alert_limit_m: float = ALERT_LIMIT_M) -> dict:
     est, truth = rec.estimates[eid], rec.truth
     error = horizontal_error(est, truth)
     yaw_error = yaw_error_deg(est, truth)
@@ -203,12 +211,34 @@ def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window]) -> di
         "yaw": stats(yaw_error),
         "windows": window_metrics(windows, rec.scan_t, error, yaw_error),
         "monitor": monitor_metrics(rec.fixes, eid),
+        "integrity": integrity_metrics(error, rec.protection.get(eid, np.full(len(error), math.nan)), alert_limit_m),
     }
     failed = [f for f in rec.failures if f["component"] == "estimator" and f["id"] == eid]
     out["failed"] = bool(failed)
     if failed:
         out["failed_at"] = failed[0]["stamp"]
     return out
+
+
+def integrity_metrics(error: np.ndarray, level: np.ndarray, alert_limit_m: float) -> dict:
+    """The standard integrity figures of an estimator's horizontal protection level (HPL) over the scans where it had both
+    an estimate and a level: `misleading` the share of epochs whose error exceeded HPL (and `misleading_epochs` their
+    count), `hazardous_epochs` those whose error exceeded the alert limit while HPL was below it, `available` the share
+    of the run's scans with HPL below the alert limit (a scan without an estimate or a level is not available), and
+    `hpl` its distribution (NaN throughout for an estimator that reports no level)."""
+    both = np.isfinite(error) & np.isfinite(level)
+    e, pl = error[both], level[both]
+    if not len(e):
+        unmeasured = dict.fromkeys(("misleading", "misleading_epochs", "hazardous_epochs", "available"), math.nan)
+        return {"alert_limit_m": alert_limit_m, "hpl": stats(e), **unmeasured}
+    return {
+        "alert_limit_m": alert_limit_m,
+        "hpl": stats(pl),
+        "misleading": float(np.mean(e > pl)),
+        "misleading_epochs": int(np.sum(e > pl)),
+        "hazardous_epochs": int(np.sum((e > alert_limit_m) & (pl < alert_limit_m))),
+        "available": float(np.sum(pl < alert_limit_m) / len(error)),
+    }
 
 
 def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray, yaw_error: np.ndarray | None = None) -> dict:
@@ -348,14 +378,14 @@ def gps_metrics(fixes: FixTable) -> dict:
     }
 
 
-def compute(rec: RunRecord, windows: list[win.Window], run_info: dict, vessel: dict) -> dict:
+def compute(rec: RunRecord, windows: list[win.Window], run_info: dict, vessel: dict, alert_limit_m: float = ALERT_LIMIT_M) -> dict:
     """The metrics tree (NaN where nothing could be measured; written as null in JSON); `vessel` from scenarios.score.vessel_log.metrics.
     A run with a magnetic compass also has `compass` (its own heading error) and `estimators.<id>.compass` for those fed it."""
     tree = {
         "run": run_info,
         "gps": gps_metrics(rec.fixes),
         "vessel": vessel,
-        "estimators": {eid: estimator_metrics(rec, eid, windows) for eid in rec.estimates},
+        "estimators": {eid: estimator_metrics(rec, eid, windows, alert_limit_m) for eid in rec.estimates},
         "matchers": {mid: matcher_metrics(rec, mid) for mid in rec.matches},
     }
     if rec.headings is not None:

@@ -90,6 +90,8 @@ class RunRecord:
     failures: list[dict] = field(default_factory=list)
     injected: list[tuple[float, float]] = field(default_factory=list)
     headings: HeadingTable | None = None
+    protection: dict[str, np.ndarray] = field(default_factory=dict)
+    """Per estimator, its horizontal protection level at each scan (m; NaN where it reported none)."""
 
 
 class Column:
@@ -135,8 +137,16 @@ class Recorder:
             rows[key] = Column(row)
         rows[key].append(row)
 
-    def scan(self, stamp: float, truth: np.ndarray, results: dict[str, MatchResult], estimates: dict[str, np.ndarray]) -> None:
-        """One scan: true base_link pose, every matcher's result, every estimator's pose after it."""
+    def scan(
+        self,
+        stamp: float,
+        truth: np.ndarray,
+        results: dict[str, MatchResult],
+        estimates: dict[str, np.ndarray],
+        levels: dict[str, float] | None = None,
+    ) -> None:
+        """One scan: true base_link pose, every matcher's result, every estimator's pose after it and its horizontal
+        protection level (NaN: none reported)."""
         self._add(self.scan_rows, "t", stamp)
         self._add(self.scan_rows, "truth", truth)
         for mid, r in results.items():
@@ -148,6 +158,7 @@ class Recorder:
             self._add(self.scan_rows, f"pose:{mid}", self._chain(mid, stamp, truth, r))
         for eid, pose in estimates.items():
             self._add(self.scan_rows, f"est:{eid}", pose)
+            self._add(self.scan_rows, f"hpl:{eid}", float((levels or {}).get(eid, math.nan)))
 
     def _chain(self, mid: str, stamp: float, truth: np.ndarray, r: MatchResult) -> np.ndarray:
         """World<-base_link of this scan from the matcher's odometry. A scan that passed the gate becomes
@@ -240,6 +251,7 @@ class Recorder:
             failures=list(self.failures),
             injected=list(injected),
             headings=self._headings(),
+            protection={e: col(s, f"hpl:{e}") for e in self.estimator_ids},
         )
 
     def _headings(self) -> HeadingTable | None:

@@ -219,6 +219,19 @@ class Control(BaseModel):
     )
 
 
+class IntegrityConfig(BaseModel):
+    """How the estimators' protection levels are scored: against which alert limit."""
+
+    model_config = ConfigDict(extra="forbid")
+    alert_limit_m: float = Field(
+        10.0,
+        gt=0,
+        description="horizontal alert limit, m: an epoch whose protection level is below it is available; one whose error "
+        "exceeds it while the level said below is hazardous [10 m: IMO Resolution A.1046(27)'s alert limit for inland "
+        "waterways' navigation (10 m at 99.5 % accuracy 5 m) and for ports' approaches (25 m, 10 m accuracy)]",
+    )
+
+
 class FastVariant(BaseModel):
     """What `--fast` (riverbench run, sweep, suite) runs instead: a shorter stretch with its own expectations."""
 
@@ -273,6 +286,7 @@ class Scenario(BaseModel):
         None,
         description="sim.magnetic_compass: the magnetic compass and the steel's disturbance; simulated when an estimator's sensors include compass",
     )
+    integrity: IntegrityConfig = Field(default_factory=IntegrityConfig, description="the alert limit the protection levels are scored against")
     matchers: list[MatcherSpec] = Field(default_factory=_default_matchers, description="scan matchers under test")
     estimators: list[EstimatorSpec] = Field(default_factory=_default_estimators, description="estimators under test")
     expect: list[str] = Field(

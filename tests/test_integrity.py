@@ -1,0 +1,76 @@
+"""Protection levels: the bound's analytic rule, the standard integrity figures, and bad settings refused."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+import fusion
+from fusion.integrity import kappa, protection_level
+from scenarios.cli import app
+from scenarios.score.metrics import integrity_metrics
+from scenarios.spec.library import validate
+
+
+def test_kappa_is_the_rayleigh_quantile():
+    """For an isotropic error the circle of radius k sigma is left with probability exp(-k^2 / 2) exactly."""
+    for risk in (1e-2, 1e-5, 1e-7):
+        assert math.exp(-(kappa(risk) ** 2) / 2.0) == pytest.approx(risk, rel=1e-12)
+    assert kappa(1e-5) == pytest.approx(4.7985, abs=1e-4)
+
+
+@settings(max_examples=30, deadline=None)
+@given(sx=st.floats(0.1, 5.0), sy=st.floats(0.1, 5.0), angle=st.floats(0.0, math.pi), seed=st.integers(0, 2**31))
+def test_the_level_bounds_gaussian_errors_at_the_stated_risk(sx, sy, angle, seed):
+    """Errors drawn from the covariance leave the level no more often than the risk allows (a binomial margin of
+    4 sigma): exactly so when isotropic, conservatively otherwise."""
+    risk, n = 0.01, 20000
+    c, s = math.cos(angle), math.sin(angle)
+    rot = np.array([[c, -s], [s, c]])
+    cov = rot @ np.diag([sx**2, sy**2]) @ rot.T
+    errors = np.random.default_rng(seed).multivariate_normal(np.zeros(2), cov, n)
+    share = float(np.mean(np.hypot(errors[:, 0], errors[:, 1]) > protection_level(cov, risk)))
+    assert share <= risk + 4.0 * math.sqrt(risk * (1 - risk) / n)
+
+
+def test_a_non_finite_covariance_has_no_level_and_a_bad_risk_is_refused():
+    assert math.isnan(protection_level(np.full((2, 2), np.inf), 1e-5))
+    with pytest.raises(ValueError, match="integrity risk"):
+        kappa(0.0)
+    with pytest.raises(ValueError, match="integrity_risk"):
+        fusion.create("ekf", integrity_risk=0.0)
+    with pytest.raises(ValueError, match="integrity_risk"):
+        fusion.create("pf", integrity_risk=1.5)
+
+
+def test_the_standard_figures_on_a_hand_counted_case():
+    error = np.array([1.0, 5.0, 12.0, 3.0, np.nan])
+    level = np.array([2.0, 4.0, 8.0, 12.0, 3.0])
+    out = integrity_metrics(error, level, 10.0)
+    assert out["misleading_epochs"] == 2 and out["misleading"] == pytest.approx(2 / 4)  # 5 > 4, 12 > 8
+    assert out["hazardous_epochs"] == 1  # 12 m with the level at 8 m, under the 10 m alert limit
+    assert out["available"] == pytest.approx(3 / 5)  # levels below 10 m over every scan (one had no estimate)
+    assert out["hpl"]["max"] == 12.0
+    none = integrity_metrics(error, np.full(5, np.nan), 10.0)
+    assert math.isnan(none["misleading"]) and math.isnan(none["available"])
+
+
+def test_the_ekf_reports_a_level_that_its_covariance_gives():
+    from fusion.bootstrap import Alignment
+
+    ekf = fusion.create("ekf", integrity_risk=1e-3)
+    assert math.isnan(ekf.protection_level)
+    ekf._initialise(Alignment(0.0, np.array([0.0, 0.0, 0.0]), np.diag([4.0, 1.0, 0.01])))
+    assert ekf.protection_level == pytest.approx(kappa(1e-3) * 2.0)
+
+
+@pytest.mark.parametrize("setting", ["integrity.alert_limit_m=0", "integrity.alert_limit_m=-3", "integrity.alert=10"])
+def test_a_bad_alert_limit_is_one_line_and_exit_2(setting, tmp_path):
+    result = CliRunner().invoke(app, ["run", "open_river", "--set", setting, "--out", str(tmp_path / "r")])
+    assert result.exit_code == 2
+    assert "integrity" in result.output and "Traceback" not in result.output
+    with pytest.raises(ValueError, match="alert_limit_m"):
+        validate({"name": "x", "world": "open_river", "integrity": {"alert_limit_m": 0}})

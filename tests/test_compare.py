@@ -466,3 +466,16 @@ def test_a_configuration_with_another_matcher_is_labelled_by_its_kind_not_its_pa
     flat = [groups.flatten(one), groups.flatten(two)]
     assert groups.label_keys(flat) == ["matchers.bev.kind"]
     assert [groups.label_text(f, ["matchers.bev.kind"]) for f in flat] == ["matchers.bev.kind=–", "matchers.bev.kind=bev3dof"]
+
+
+def test_a_configuration_whose_runs_report_protection_levels_gets_a_stanford_diagram(tmp_path):
+    """Two seeds of the report tests' synthetic run (scans.csv with <id>.hpl): one diagram, the epochs of both pooled."""
+    from test_report import make_run as make_full_run
+
+    for seed in (0, 1):
+        make_full_run(tmp_path / "runs" / f"s{seed}")
+    compare.write([tmp_path / "runs"], tmp_path / "report")
+    drawn = sorted(p.name for p in (tmp_path / "report" / "plots").glob("stanford-*.png"))
+    assert len(drawn) == 1 and (tmp_path / "report" / "plots" / drawn[0]).read_bytes().startswith(b"\x89PNG")
+    text = (tmp_path / "report" / "report.md").read_text()
+    assert "### Protection levels" in text and f"](plots/{drawn[0]})" in text and "over the scans of 2 runs, pooled" in text

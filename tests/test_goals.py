@@ -70,3 +70,24 @@ def test_the_results_table_shows_each_seed_met_or_not():
     assert "| 1 (bound 2.1) ✓ | 4 (bound 2.1) ✗ | **no** (1 of 2 seeds) |" in table
     assert "| – | – | n/a |" in table
     assert not math.isnan(runs.values("estimators.ekf.ape.p95", [0])[0])
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ('goals = ["estimators.nobody.ape.p95 < 3"]\n', "no estimator with id 'nobody'"),
+        ('[[estimators]]\nid = "ekf"\nkind = "ekf"\nmonitor = "combined_cn0"\nmonitor_params = {gate = 3}\n', "gate"),
+        ('[[estimators]]\nid = "ekf"\nkind = "ekf"\nparams = {integrity_risk = 0}\n', "integrity_risk"),
+    ],
+)
+def test_a_bad_goal_monitor_key_or_integrity_risk_is_one_line_and_exit_2(text, why, tmp_path):
+    from typer.testing import CliRunner
+
+    from scenarios.cli import app
+
+    path = tmp_path / "bad.toml"
+    path.write_text('world = "open_river"\nstretch = {start_s = 0.0, end_s = 5.0}\n' + text)
+    result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "r"), "--quiet"])
+    assert result.exit_code == 2 and why in result.output and "Traceback" not in result.output
+    assert len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "r").exists()

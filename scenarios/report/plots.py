@@ -397,16 +397,18 @@ def error_figure(series: RunSeries) -> Figure | None:
 
 def stanford_figure(series: RunSeries) -> Figure | None:
     """Error against protection level for each estimator whose scans.csv column holds levels (scenarios.report.stanford)."""
-    epochs = {}
-    scan_t = series.scans.get("t", np.zeros(0))
-    for name, track in series.estimates.items():
-        level = series.scans.get(f"{name}.hpl")
-        if level is None or not len(track.t) or not len(scan_t):
-            continue
-        # the TUM file holds the scans with an estimate; scans.csv every scan: the level at each pose's scan
-        at = np.clip(np.searchsorted(scan_t, track.t - 1e-6), 0, len(scan_t) - 1)
-        epochs[name] = stanford.Epochs.of(horizontal_error(track, series.truth), np.where(np.abs(scan_t[at] - track.t) < 1e-3, level[at], np.nan))
+    epochs = {name: e for name in series.estimates if (e := stanford_epochs(series, name)) is not None}
     return stanford.figure(epochs, series.alert_limit_m, "Protection levels", WIDTH_IN)
+
+
+def stanford_epochs(series: RunSeries, name: str) -> stanford.Epochs | None:
+    """An estimator's (error, protection level) per scan with both, or None when scans.csv has no level column for it."""
+    level, track, scan_t = series.scans.get(f"{name}.hpl"), series.estimates.get(name), series.scans.get("t", np.zeros(0))
+    if level is None or track is None or not len(track.t) or not len(scan_t):
+        return None
+    # the TUM file holds the scans with an estimate; scans.csv every scan: the level at each pose's scan
+    at = np.clip(np.searchsorted(scan_t, track.t - 1e-6), 0, len(scan_t) - 1)
+    return stanford.Epochs.of(horizontal_error(track, series.truth), np.where(np.abs(scan_t[at] - track.t) < 1e-3, level[at], np.nan))
 
 
 def hdop_figure(series: RunSeries) -> Figure | None:

@@ -3,7 +3,7 @@
 `write(sources, out_dir)` finds every run directory under the sources (a run, a suite or a sweep directory, at any
 depth; hidden directories are runs in progress and are skipped), groups the runs by scenario and configuration (the
 resolved scenario without its seed: runs that differ only in seed are repeats), and writes report.md, a self-contained
-report.html and plots/roc-*.png. Every number is the median over a configuration's seeds with its range (min–max), so a
+report.html and plots/roc-*.png and plots/stanford-*.png. Every number is the median over a configuration's seeds with its range (min–max), so a
 reader can tell a real difference from noise; the written summary says which differences exceed that range.
 
 Modules: runs (finding and reading runs), groups (configurations and spreads over seeds), roc (monitor ROC), verdicts
@@ -31,7 +31,7 @@ def write(sources: list[Path], out_dir: Path, against: Comparison | None = None)
     confs = groups.configurations([runs.read_run(p) for p in run_dirs])
     stopped = runs.unfinished(listings)
     with atomic_dir(out_dir) as tmp:
-        images = blocks.draw_rocs(confs, tmp)
+        images = blocks.draw_rocs(confs, tmp) | blocks.draw_stanfords(confs, tmp)
         page = blocks.build(confs, images, stopped, out_dir)
         if against is not None:
             page[3:3] = baseline_section(against)  # after the title, what was compared and how to read it

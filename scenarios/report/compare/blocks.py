@@ -6,7 +6,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from scenarios.report import document, plots
+from scenarios.report import document, plots, stanford
 from scenarios.report import run_report as report
 from scenarios.report.compare.groups import (
     ACCURACY,
@@ -201,8 +201,47 @@ def conf_section(conf: Configuration, images: dict[str, str]) -> list:
         )
     )
     blocks += [Text(s) for s in conf_sentences(conf)]
-    blocks += estimator_tables(conf) + matcher_tables(conf) + roc_blocks(conf, images)
+    blocks += estimator_tables(conf) + matcher_tables(conf) + roc_blocks(conf, images) + stanford_blocks(conf, images)
     return blocks
+
+
+def stanford_blocks(conf: Configuration, images: dict[str, str]) -> list:
+    """The configuration's Stanford diagram (its runs' epochs pooled), or nothing when no estimator reported a level."""
+    key = STANFORD_KEY + conf.title
+    if key not in images:
+        return []
+    caption = (
+        f"Stanford diagram over the scans of {plural(len(conf.runs), 'run')}, pooled: each estimator's horizontal error against "
+        "the protection level it reported, coloured by epochs per cell; above the diagonal the level failed to bound the error "
+        "(misleading information), above the dashed alert limit while the level was inside it, hazardously."
+    )
+    return [Heading(3, "Protection levels"), Image(images[key], caption)]
+
+
+STANFORD_KEY = "stanford:"
+"""Prefix of a configuration's Stanford diagram among the drawn images (the ROC is keyed by the title alone)."""
+
+
+def draw_stanfords(confs: list[Configuration], out_dir: Path) -> dict[str, str]:
+    """Draw each configuration's Stanford diagram where its runs hold levels; returns {STANFORD_KEY + title: relative path}."""
+    written = {}
+    for index, conf in enumerate(confs):
+        pooled: dict[str, list] = {}
+        alert = float((conf.runs[0].config.get("integrity") or {}).get("alert_limit_m", plots.RunSeries.alert_limit_m))
+        for run in conf.runs:
+            series = plots.load(run.path, list(conf.estimators), [], {})
+            for eid in conf.estimators:
+                if (e := plots.stanford_epochs(series, eid)) is not None:
+                    pooled.setdefault(eid, []).append(e)
+        epochs = {eid: stanford.Epochs.pooled(parts) for eid, parts in pooled.items()}
+        figure = stanford.figure(epochs, alert, conf.title, plots.WIDTH_IN)
+        if figure is None:
+            continue
+        path = roc_path(index, conf.title).replace("plots/roc-", "plots/stanford-")
+        (out_dir / path).parent.mkdir(parents=True, exist_ok=True)
+        figure.savefig(out_dir / path, format="png", dpi=plots.DPI)
+        written[STANFORD_KEY + conf.title] = path
+    return written
 
 
 def estimator_tables(conf: Configuration) -> list:

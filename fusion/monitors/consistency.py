@@ -26,8 +26,9 @@ constant-velocity prior there, and the filter gives that direction 1e6 m^2), bot
 that extrapolation, uncertain by a speed error growing from the last trusted fix plus the motion model's acceleration
 (see _bounded); with 1e6 m^2 a receiver's ramp along a quay passed both. The price: where the vessel changes speed while
 the match is degenerate, the extrapolation errs and good fixes are refused until the re-lock (canal_multipath).
-A fix refused only on its own evidence starts a reference where there is none, so a receiver whose every fix carries a
-weak satellite (tree-lined banks) still gets one.
+Every fix that passed both tests updates the reference, those refused only on their own evidence (C/N0) included: a
+receiver whose every fix carries a weak satellite (tree-lined banks) still gets one, and the bound stays that of a
+recently anchored track.
 Steady (Verdict.steady): the fix's displacement from the fix a window earlier passes the guard's tight gate; the host
 counts only steady refused fixes towards a re-lock, so it never re-locks onto a receiver's ramp.
 Two fixes dt apart have errors correlated by rho = exp(-dt / correlation_s) (the host's
@@ -129,11 +130,11 @@ class ConsistencyMonitor(Monitor):
         extrapolation; the filter's 1e6 m^2 there would blind both tests in that direction, and a receiver's NLOS ramp
         along a quay passed them: quickstart at 1762 s, 2 m/s along the wall, reference sigma 950 m). The speed error's
         share grows with the time since the carried track was anchored, so a reference carried step by step gets the
-        (sigma_v (t_b - since))^2 a single carry would."""
+        (sigma_v (t_b - since))^2 and accel_sigma^2 (t_b - since)^3 / 3 a single carry would."""
         p = self.params
-        dt = abs(t_b - t_a)
         speed = p.unobserved_speed_sigma_mps**2 * ((t_b - since) ** 2 - (t_a - since) ** 2)
-        cap = max(speed, 0.0) + p.accel_sigma**2 * dt**3 / 3.0
+        accel = p.accel_sigma**2 * ((t_b - since) ** 3 - (t_a - since) ** 3) / 3.0
+        cap = max(speed, 0.0) + max(accel, 0.0)
         values, vectors = np.linalg.eigh(0.5 * (cov + cov.T))
         if values[-1] <= cap:
             return cov
@@ -218,10 +219,11 @@ class ConsistencyMonitor(Monitor):
         while self._history and self._history[0][0].stamp < obs.stamp - 2.0 * self.params.window_s:
             self._history.popleft()
         self._ref = ref
-        # a fix refused only on its own evidence starts a reference where there is none (C/N0 alone says nothing of the
-        # position; without it a receiver whose every fix looked suspect, as open water's tree-lined banks make them,
-        # never had a reference to judge one against)
-        if verdict.trusted or (verdict.on_its_own and self._ref is None):
+        # a fix refused only on its own evidence (a weak satellite: C/N0 says nothing of the position, and this
+        # monitor's own tests passed, or the verdict would not be on its own evidence) updates the reference too: without
+        # it a receiver whose every fix looked suspect, as open water's tree-lined banks make them, had no reference
+        # (gps_jump), and one carried 20 s beside the quickstart's quays outgrew the ramp it had to catch
+        if verdict.trusted or verdict.on_its_own:
             if self._ref is None:
                 self._ref = (obs.stamp, obs.xy.copy(), obs.cov.copy())
             else:

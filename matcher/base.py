@@ -91,9 +91,14 @@ class Matcher(ABC):
         result.n_points = n
         result.info["ref_stamp"] = self._ref_stamp  # T is relative to the lidar frame at this stamp
         if result.ok:
-            reason = self._implausible(result.T, dt) or self._overturned(result.T)
+            overturned = ""
+            reason = self._implausible(result.T, dt) or (overturned := self._overturned(result.T))
             if reason:
                 result = MatchResult.failure(reason, n_points=n, **result.info)
+            if overturned:
+                # tracking restarts from this scan, taken as level as the first one was: a chain that tilted stays failed
+                # otherwise (quickstart [fast] seed 0: every match after the Longfellow Bridge's deck, success 0.50)
+                self._attitude = np.eye(3)
         if result.ok:
             self._attitude = self._attitude @ np.asarray(result.T, dtype=float)[:3, :3]
             self.velocity.update(result.T, dt)

@@ -77,14 +77,16 @@ def _scan(stamp: float) -> Scan:
 @pytest.mark.parametrize("step_deg", [1.4, 40.0])
 def test_a_chain_that_tilts_past_an_upright_boat_fails(step_deg):
     """Steady pitch steps, each within the yaw-rate bound (the Euler yaw of each is 0), fail once the chain would
-    tilt past MAX_TILT_DEG; the chain's attitude never exceeds it."""
+    tilt past MAX_TILT_DEG; tracking then restarts from that scan, taken as level, so the chain's attitude never
+    exceeds the bound and the matches after the failure are judged afresh (not all failed for good, as quickstart's
+    [fast] seed 0 had them after the Longfellow Bridge's deck)."""
     m = _Tilting(step_deg)
     results = [m.register(_scan(0.1 * k)) for k in range(60)][1:]
     ok = np.array([r.ok for r in results])
     allowed = int(MAX_TILT_DEG // step_deg)
-    assert ok[:allowed].all()
-    assert not ok[allowed:].any()
-    assert all("implausible attitude" in r.info["reason"] for r in results[allowed:])
+    expected = np.array([(i + 1) % (allowed + 1) != 0 for i in range(len(results))])
+    assert (ok == expected).all()
+    assert all("implausible attitude" in r.info["reason"] for r, good in zip(results, ok) if not good)
 
 
 @pytest.mark.parametrize(

@@ -99,7 +99,7 @@ FAMILIES: tuple[Family, ...] = (
     Family("recovered share", ("estimators.*.windows.*.recovered", "estimators.*.windows.*.settled"), "higher", abs_tol=0.01),
     Family("availability", ("estimators.*.available", "estimators.*.integrity.available"), "higher", abs_tol=0.005),
     Family("protection level", ("estimators.*.integrity.hpl.*",), "none"),
-    Family("misleading information", ("estimators.*.integrity.misleading",), "lower", abs_tol=0.002),
+    Family("misleading information", ("estimators.*.integrity.misleading",), "lower", abs_tol=0.005),
     Family("misleading epochs", ("estimators.*.integrity.misleading_epochs", "estimators.*.integrity.hazardous_epochs"), "lower", abs_tol=2.0),
     Family(
         "fault detection",

@@ -106,6 +106,8 @@ def _lookup(metrics: dict, path: str) -> tuple[float, str]:
     """The number at a dotted path, or NaN and why it is not there (missing, not a number, NaN)."""
     node = metrics
     for i, key in enumerate(path.split(".")):
+        if i == 1 and isinstance(node, dict) and key not in node and path.split(".")[0] in ("estimators", "matchers"):
+            return math.nan, f"no {path.split('.')[0][:-1]} {key!r} in this run (nothing to measure)"
         if not isinstance(node, dict) or key not in node:
             where = ".".join(path.split(".")[:i]) or "metrics"
             options = ", ".join(sorted(node)) if isinstance(node, dict) else "not a table"

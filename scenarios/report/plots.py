@@ -407,7 +407,7 @@ def stanford_epochs(series: RunSeries, name: str) -> stanford.Epochs | None:
     if level is None or track is None or not len(track.t) or not len(scan_t):
         return None
     # the TUM file holds the scans with an estimate; scans.csv every scan: the level at each pose's scan
-    at = np.clip(np.searchsorted(scan_t, track.t - 1e-6), 0, len(scan_t) - 1)
+    at = np.rint(np.interp(track.t, scan_t, np.arange(len(scan_t)))).astype(int)  # nearest scan (scans.csv's t has 1 ms)
     return stanford.Epochs.of(horizontal_error(track, series.truth), np.where(np.abs(scan_t[at] - track.t) < 1e-3, level[at], np.nan))
 
 

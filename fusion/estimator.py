@@ -9,7 +9,7 @@ from scipy.stats import chi2
 
 from fusion.bootstrap import HEADING_FROM_COMPASS, HEADING_FROM_COURSE, HEADING_GIVEN, HEADING_UNKNOWN, Alignment, Bootstrap
 from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
-from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix
+from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix, rot2
 from fusion.integrity import protection_level
 from fusion.monitors import FixContext, Monitor
 from fusion.observation import FixObservation, screen
@@ -454,6 +454,7 @@ class Estimator:
     def _context(self, obs: FixObservation) -> FixContext:
         predicted = self._predicted_antenna(obs) if self.initialized else None
         heading = self._heading() if self.initialized else None
+        body = self._body_velocity() if heading is not None else None
         return FixContext(
             predicted=predicted,
             yaw=None if heading is None else heading[0],
@@ -461,6 +462,7 @@ class Estimator:
             lever=self.lever,
             odometry=self.odometry,
             correlation_s=self.params.gps_correlation_s,
+            velocity=None if heading is None or body is None else rot2(heading[0]) @ body,
         )
 
     def _advance(self, stamp: float) -> None:

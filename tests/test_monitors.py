@@ -136,19 +136,20 @@ def test_registry_validates_names_and_parameters():
     assert [m.name for m in mon.members] == ["hdop", "consistency"]
 
 
-def _along_a_wall(unobserved: float = 1e6) -> OdometryTrack:
+def _along_a_wall(unobserved: float = 1e6, prior_mps: float = 2.0) -> OdometryTrack:
     """A straight run east at 2 m/s whose matches leave the along-track direction unobserved (a degenerate match along a
-    quay keeps its constant-velocity prior there: the step is right, its variance 1e6 m^2)."""
+    quay keeps a prior of its own there, prior_mps: the step is right when that is 2, its variance 1e6 m^2)."""
     track = OdometryTrack()
     for t in np.arange(0.0, 40.0, 0.1):
-        track.add(float(t), np.array([0.2, 0.0, 0.0]), np.diag([unobserved, 1e-4, 1e-6]))
+        track.add(float(t), np.array([0.1 * prior_mps, 0.0, 0.0]), np.diag([unobserved, 1e-4, 1e-6]))
     return track
 
 
-def _feed(mon, track: OdometryTrack, error_of, suspect_of=lambda t: False) -> list:
+def _feed(mon, track: OdometryTrack, error_of, suspect_of=lambda t: False, velocity: np.ndarray | None = None) -> list:
     """Fixes at 5 Hz on the true track plus error_of(t) metres east; suspect_of(t) fixes are refused on their own
-    evidence first (as a C/N0 monitor would); every fix goes through check and commit. Returns (t, verdict) pairs."""
-    ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0)
+    evidence first (as a C/N0 monitor would); every fix goes through check and commit; velocity: the host filter's (None:
+    a host without one). Returns (t, verdict) pairs."""
+    ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0, velocity=velocity)
     out = []
     for t in np.arange(0.0, 39.0, 0.2):
         obs = _obs(float(t), [2.0 * t + error_of(t), 0.0], sigma=0.5)
@@ -176,6 +177,19 @@ def test_a_constant_velocity_run_along_an_unobserved_direction_is_trusted():
     """The bound does not refuse good fixes where the extrapolation holds."""
     verdicts = _feed(monitors.create("consistency"), _along_a_wall(), lambda t: 0.0)
     assert all(v.trusted for t, v in verdicts if t >= 5.0)
+
+
+def test_an_unobserved_direction_moves_with_the_filters_velocity_not_the_matchers_prior():
+    """rough_water: in the canal's first 200 m gicp constrains height alone and its prior, never having seen the motion,
+    says 0.04 m/s while the boat makes 2 m/s; taking that prior as the displacement refused 77% of fixes good to 0.5 m.
+    The host filter's velocity carries the unobserved direction: good fixes are trusted, and a ramp is still refused."""
+    stuck = _along_a_wall(prior_mps=0.0)
+    east = np.array([2.0, 0.0])
+    assert not all(v.trusted for t, v in _feed(monitors.create("consistency"), stuck, lambda t: 0.0) if t >= 5.0)
+    assert all(v.trusted for t, v in _feed(monitors.create("consistency"), stuck, lambda t: 0.0, velocity=east) if t >= 5.0)
+    ramp = lambda t: 0.0 if t < 20.0 else min(3.0 * (t - 20.0), 40.0)
+    verdicts = _feed(monitors.create("consistency"), stuck, ramp, suspect_of=lambda t: 12.0 <= t < 20.0, velocity=east)
+    assert not any(v.trusted for t, v in verdicts if ramp(t) > 3.0)
 
 
 def test_a_reference_starts_from_fixes_refused_only_on_their_own_evidence():

@@ -18,7 +18,8 @@ class FixContext:
     predicted: the fix (x, y) the filter expects, the 2x2 covariance of that prediction and the 2x2
     noise it assumes for this fix (None before it is initialised); yaw/yaw_var: the filter's heading and its variance (None before initialisation);
     lever: antenna (x, y) on base_link; odometry: the scan-matching chain; correlation_s: the
-    receiver's error time constant (see EstimatorParams.gps_correlation_s).
+    receiver's error time constant (see EstimatorParams.gps_correlation_s); velocity: the filter's horizontal
+    velocity of base_link in the world, m/s (None before initialisation, or for a filter without one).
     """
 
     predicted: tuple[np.ndarray, np.ndarray, np.ndarray] | None
@@ -27,6 +28,7 @@ class FixContext:
     lever: np.ndarray
     odometry: OdometryTrack
     correlation_s: float = 0.0
+    velocity: np.ndarray | None = None
 
 
 def mahalanobis2(r: np.ndarray, cov: np.ndarray) -> float:

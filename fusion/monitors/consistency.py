@@ -21,10 +21,11 @@ metres per second shows the ramp in consecutive fixes while a suspect-satellite 
 (quickstart at 1764.7 s: 12.9 m and rising 8 m/s, trusted because every earlier fix had been refused on C/N0 and the
 window held no trusted one). The price: the first good fix after a fault refused on C/N0 alone is refused for up to
 twice `window_s`, as it jumps back.
-Where the odometry leaves a direction unobserved (a degenerate match between walls or along a quay keeps its
-constant-velocity prior there, and the filter gives that direction 1e6 m^2), both tests take the displacement there as
-that extrapolation, uncertain by a speed error growing from the last trusted fix plus the motion model's acceleration
-(see _bounded); with 1e6 m^2 a receiver's ramp along a quay passed both. The price: where the vessel changes speed while
+Where the odometry leaves a direction unobserved (a degenerate match between walls or along a quay keeps a prior of its
+own there, and the filter gives that direction 1e6 m^2), both tests take the displacement there as the constant-velocity
+extrapolation of the host filter's velocity, uncertain by a speed error growing from the last trusted fix plus the motion
+model's acceleration (see _moved and _cap); with 1e6 m^2 a receiver's ramp along a quay passed both, and with the
+matcher's own prior a boat the matcher never saw move was held to stand still. The price: where the vessel changes speed while
 the match is degenerate, the extrapolation errs and good fixes are refused until the re-lock (canal_multipath).
 Every fix that passed both tests updates the reference, those refused only on their own evidence (C/N0) included: a
 receiver whose every fix carries a weak satellite (tree-lined banks) still gets one, and the bound stays that of a
@@ -113,32 +114,39 @@ class ConsistencyMonitor(Monitor):
 
     def _moved(self, t_a: float, t_b: float, ctx: FixContext, since: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance; `since` (default t_a):
-        when the track being carried was last anchored by a fix, from which an unobserved direction's speed error grows."""
+        when the track being carried was last anchored by a fix, from which an unobserved direction's speed error grows.
+        Along a direction the odometry leaves unobserved the displacement is the filter's velocity times the time (see
+        _cap): a degenerate matcher's own prior there is a guess of its own, and one that never saw the motion says
+        the vessel stands still (rough_water's first 200 m of canal: gicp constrains height alone, its prior 0.04 m/s while
+        the boat makes 2 m/s, and the monitor refused 77% of fixes good to 0.5 m)."""
         moved = ctx.odometry.displacement(t_a, t_b, ctx.lever)
         if moved is None or ctx.yaw is None:
             return None
         d_odo, cov_odo, odo_yaw = moved
-        cov_odo = self._bounded(cov_odo, t_a, t_b, t_a if since is None else since)
         offset = ctx.yaw - odo_yaw
         rot = rot2(offset)
         j_yaw = drot2(offset) @ d_odo
-        return rot @ d_odo, rot @ cov_odo @ rot.T + np.outer(j_yaw, j_yaw) * (ctx.yaw_var or 0.0)
+        d_world, cov_world = rot @ d_odo, rot @ cov_odo @ rot.T
+        values, vectors = np.linalg.eigh(0.5 * (cov_world + cov_world.T))
+        cap = self._cap(t_a, t_b, t_a if since is None else since)
+        if ctx.velocity is not None:
+            for i in np.flatnonzero(values > cap):
+                u = vectors[:, i]
+                d_world = d_world + u * float(u @ (ctx.velocity * (t_b - t_a) - d_world))
+        cov_world = (vectors * np.minimum(values, cap)) @ vectors.T
+        return d_world, cov_world + np.outer(j_yaw, j_yaw) * (ctx.yaw_var or 0.0)
 
-    def _bounded(self, cov: np.ndarray, t_a: float, t_b: float, since: float) -> np.ndarray:
-        """The odometry displacement's covariance with each direction's variance at most what a constant-velocity
-        extrapolation from t_a to t_b allows (a degenerate match's prior along a wall or under a deck is that
-        extrapolation; the filter's 1e6 m^2 there would blind both tests in that direction, and a receiver's NLOS ramp
-        along a quay passed them: quickstart at 1762 s, 2 m/s along the wall, reference sigma 950 m). The speed error's
-        share grows with the time since the carried track was anchored, so a reference carried step by step gets the
-        (sigma_v (t_b - since))^2 and accel_sigma^2 (t_b - since)^3 / 3 a single carry would."""
+    def _cap(self, t_a: float, t_b: float, since: float) -> float:
+        """The largest variance a direction's displacement from t_a to t_b gets: that of a constant-velocity extrapolation
+        (a degenerate match's prior along a wall or under a deck; the filter's 1e6 m^2 there would blind both tests in
+        that direction, and a receiver's NLOS ramp along a quay passed them: quickstart at 1762 s, 2 m/s along the wall,
+        reference sigma 950 m). The speed error's share grows with the time since the carried track was anchored, so a
+        reference carried step by step gets the (sigma_v (t_b - since))^2 and accel_sigma^2 (t_b - since)^3 / 3 a single
+        carry would."""
         p = self.params
         speed = p.unobserved_speed_sigma_mps**2 * ((t_b - since) ** 2 - (t_a - since) ** 2)
         accel = p.accel_sigma**2 * ((t_b - since) ** 3 - (t_a - since) ** 3) / 3.0
-        cap = max(speed, 0.0) + max(accel, 0.0)
-        values, vectors = np.linalg.eigh(0.5 * (cov + cov.T))
-        if values[-1] <= cap:
-            return cov
-        return (vectors * np.minimum(values, cap)) @ vectors.T
+        return max(speed, 0.0) + max(accel, 0.0)
 
     def _distance(self, ref: FixObservation, obs: FixObservation, ctx: FixContext) -> float:
         """Mahalanobis distance squared of the GPS displacement from ref to obs against the odometry's."""

@@ -74,3 +74,33 @@ def test_a_bad_alert_limit_is_one_line_and_exit_2(setting, tmp_path):
     assert "integrity" in result.output and "Traceback" not in result.output
     with pytest.raises(ValueError, match="alert_limit_m"):
         validate({"name": "x", "world": "open_river", "integrity": {"alert_limit_m": 0}})
+
+
+@settings(max_examples=50, deadline=None)
+@given(rate_hz=st.sampled_from([5.0, 10.0, 20.0]), start=st.floats(0.0, 5000.0), n=st.integers(2, 300), seed=st.integers(0, 2**31))
+def test_the_stanford_diagram_gives_each_pose_the_level_of_its_own_scan(rate_hz, start, n, seed):
+    """scans.csv writes t to 1 ms and the TUM file to full precision: each pose still takes its own scan's level (at
+    689ae21's parent, the next scan's or none: the demo's diagram held 1 epoch per estimator instead of 5,152)."""
+    from scenarios.report.plots import RunSeries, Track, stanford_epochs
+
+    rng = np.random.default_rng(seed)
+    t = start + np.arange(n) / rate_hz + rng.uniform(0.0, 4e-4, n)  # the simulator's stamps: not on a ms grid
+    level = rng.uniform(1.0, 50.0, n)
+    keep = np.sort(rng.choice(n, size=max(1, n // 2), replace=False))  # the TUM file holds only scans with an estimate
+    zero = np.zeros(n)
+    truth = Track(t, zero, zero, zero)
+    estimate = Track(t[keep], np.full(len(keep), 3.0), np.full(len(keep), 4.0), np.zeros(len(keep)))
+    series = RunSeries(
+        t0=float(t[0]),
+        truth=truth,
+        estimates={"ekf": estimate},
+        matchers={},
+        gps={},
+        windows=[],
+        hdop_limits={},
+        scans={"t": np.round(t, 3), "ekf.hpl": level},
+    )
+    epochs = stanford_epochs(series, "ekf")
+    assert epochs is not None
+    np.testing.assert_allclose(epochs.level, level[keep])
+    np.testing.assert_allclose(epochs.error, 5.0)

@@ -692,6 +692,59 @@ def replay(
     console.print(f"replayed {what}: {target}", highlight=False)
 
 
+@app.command()
+def score(
+    run_dir: Path = typer.Argument(..., help="a finished run directory (what `riverbench run` writes)"),
+    component: str = typer.Argument(..., help="NAME=FILE: the component's id in the run and its trajectory file"),
+    format_: str = typer.Option("tum", "--format", help="tum ('t tx ty tz qx qy qz qw' lines) or kitti (3x4 row-major poses; stamps in --times)"),
+    times: Path = typer.Option(None, "--times", help="kitti: the file of one stamp per pose line (a KITTI times.txt)"),
+    frame: str = typer.Option("base_link", help="whose poses: base_link (the vessel's) or lidar (moved to base_link by the run's mount)"),
+    clock: str = typer.Option(
+        "unix",
+        help="the stamps' clock: unix (UNIX time, as ROS and the run's TUM files), run (seconds on the run's clock, as its CSV "
+        "files) or first_scan (seconds since the run's first scan, as a KITTI times.txt)",
+    ),
+    anchor: str = typer.Option(
+        "map",
+        help="map: poses in the run's map frame, scored as an estimator; first: odometry from its first pose, laid onto the "
+        "truth there; se2 / se3: odometry aligned to the truth by the best rigid planar / 3-D motion (evo's -a); "
+        "first, se2 and se3 are scored as a matcher",
+    ),
+    replace: bool = typer.Option(False, "--replace", help="score again a component scored in before under NAME (never a built-in one)"),
+    no_report: bool = typer.Option(False, "--no-report", help="leave report.md, report.html and plots/ as they are"),
+    quiet: bool = typer.Option(False, "--quiet", help="only the verdict line"),
+) -> None:
+    """Score a trajectory made outside the bench (KISS-ICP's kiss_icp_pipeline, a ROS or C++ stack run on an export) into a
+    finished run directory, as if its component had run inside: APE, RPE, yaw, an estimator's GPS-degradation windows,
+    coverage (the share of scans with a pose), the scenario's expectations and goals again; metrics.json, NAME.tum,
+    windows.csv and the report are rewritten. Bad input is one line and exit 2 with nothing written; exit 1 when an
+    expectation fails."""
+    from scenarios.pipeline.rescore import score as score_in
+    from scenarios.score.external import Contract
+
+    with stoppable(f"score interrupted; {run_dir} left as it was"), user_errors():
+        name, sep, file = component.partition("=")
+        if not sep or not name or not file:
+            raise ValueError(f"{component!r}: give NAME=FILE, e.g. kiss=results/poses_tum.txt")
+        contract = Contract.parse(format=format_, times=times, frame=frame, clock=clock, anchor=anchor)
+        scored = score_in(run_dir, name, Path(file), contract, replace=replace, report=not no_report)
+    node = scored.node
+    if not quiet:
+        what = "an estimator (anchor map)" if scored.section == "estimators" else f"a matcher (anchor {anchor})"
+        ape = node["ape"]["rmse"]
+        aligned = f", APE aligned rmse {node['ape_aligned']['rmse']} m" if "ape_aligned" in node else ""
+        console.print(
+            f"scored {name} as {what}: coverage {node['coverage']} of the run's scans, "
+            f"APE rmse {ape} m{aligned}, RPE 10 m mean {node['rpe_10m']['mean']} m, yaw p95 {node['yaw']['p95']} deg",
+            highlight=False,
+            markup=False,
+            soft_wrap=True,
+        )
+    target = scored.run_dir / "report.html"
+    console.print(f"{'all expectations pass' if scored.passed else '[bold red]expectations failed[/]'}: {escape(str(target))}", highlight=False)
+    raise typer.Exit(0 if scored.passed else 1)
+
+
 @scenarios_app.command("list")
 def scenarios_list(quiet: bool = typer.Option(False, "--quiet", help="the names only, one a line")) -> None:
     """Names and one-line descriptions of the library's scenarios."""

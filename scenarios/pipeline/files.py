@@ -109,18 +109,26 @@ def write_gps_csv(path: Path, rec: RunRecord, truth: bool = True) -> None:
             w.writerow(row)
 
 
+PASSAGE_KEYS = ("max_error", "entry_error", "exit_error", "added", "recover_s")
+"""windows.csv's columns per estimator, `<id>.<key>`: its passage through the row's window (scenarios.score.windows.Passage)."""
+
+
 def write_windows_csv(path: Path, windows: list[win.Window], rec: RunRecord, errors: dict[str, np.ndarray]) -> None:
     """One row per degradation window with each estimator's passage through it."""
-    keys = ("max_error", "entry_error", "exit_error", "added", "recover_s")
     with open(path, "w", newline="") as handle:
         w = csv.writer(handle)
-        w.writerow(["kind", "start", "end", "duration"] + [f"{e}.{k}" for e in errors for k in keys])
+        w.writerow(["kind", "start", "end", "duration"] + [f"{e}.{k}" for e in errors for k in PASSAGE_KEYS])
         for window in windows:
             row = [window.kind, f"{window.start:.3f}", f"{window.end:.3f}", f"{window.duration:.3f}"]
             for error in errors.values():
-                p = win.passage(window, rec.scan_t, error)
-                row += [_fmt1(getattr(p, k), 3) for k in keys]
+                row += passage_cells(window, rec.scan_t, error)
             w.writerow(row)
+
+
+def passage_cells(window: win.Window, t: np.ndarray, error: np.ndarray) -> list[str]:
+    """The PASSAGE_KEYS cells of windows.csv for an estimate with horizontal `error` at scan times `t` through `window`."""
+    p = win.passage(window, t, error)
+    return [_fmt1(getattr(p, k), 3) for k in PASSAGE_KEYS]
 
 
 def write_scans_csv(path: Path, rec: RunRecord) -> None:

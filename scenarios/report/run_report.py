@@ -95,6 +95,7 @@ def build(ctx: Context) -> list:
         *windows(ctx),
         *matchers(ctx),
         *figures(ctx, "matchers"),
+        *scored_in(ctx),
     ]
 
 
@@ -390,6 +391,44 @@ def matchers(ctx: Context) -> list:
         Heading(2, "Scan matchers"),
         ranked_table("matcher", nodes, MATCHER_COLUMNS, {mid: _failed_label(mid, n) for mid, n in nodes.items()}, note),
     ]
+
+
+ANCHOR_TEXT = {
+    "map": "in the map frame as given",
+    "first": "odometry laid onto the truth at its first pose",
+    "se2": "aligned to the truth (best rigid planar motion)",
+    "se3": "aligned to the truth (best rigid 3-D motion)",
+}
+
+
+def scored_in(ctx: Context) -> list:
+    """The components scored in after the run from trajectories made outside the bench (`riverbench score`), with the file
+    and the contract each was read under (none: no section)."""
+    rows = []
+    for section in ("estimators", "matchers"):
+        for cid, node in ctx.metrics.get(section, {}).items():
+            source = node.get("source")
+            if not isinstance(source, dict):
+                continue
+            contract = f"{source.get('format')}, {source.get('frame')} poses, {source.get('clock')} clock"
+            rows.append(
+                [
+                    Cell(cid),
+                    Cell(section[:-1]),
+                    Cell(str(source.get("file")), css="text"),
+                    Cell(contract, css="text"),
+                    Cell(ANCHOR_TEXT.get(str(source.get("anchor")), str(source.get("anchor"))), css="text"),
+                    Cell(share(node.get("coverage"))),
+                ]
+            )
+    if not rows:
+        return []
+    note = (
+        "Trajectories made outside the bench, scored into this run by `riverbench score` with the metrics of the tables above. "
+        "Coverage: the share of the run's scans that got a pose (each scan takes the pose stamped nearest it within a quarter "
+        "of a revolution); a dropped frame counts as none. A matcher's errors are those of its trajectory anchored as stated."
+    )
+    return [Heading(2, "Scored in afterwards"), Table(["component", "scored as", "file", "contract", "anchor", "coverage"], rows, note)]
 
 
 def gps(ctx: Context) -> list:

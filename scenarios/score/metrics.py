@@ -69,6 +69,7 @@ FAMILIES: tuple[Family, ...] = (
             "vessel.distance_m",
             "vessel.collision_t",
             "vessel.min_clearance_t",
+            "*.source.poses",
         ),
         "none",
     ),
@@ -97,7 +98,7 @@ FAMILIES: tuple[Family, ...] = (
     Family("disturbed compass used", ("estimators.*.compass.disturbed_used",), "lower", abs_tol=0.02),
     Family("recovery time", ("estimators.*.windows.*.recover_s", "estimators.*.windows.*.settle_s"), "lower", abs_tol=0.5, rel_tol=0.20),
     Family("recovered share", ("estimators.*.windows.*.recovered", "estimators.*.windows.*.settled"), "higher", abs_tol=0.01),
-    Family("availability", ("estimators.*.available", "estimators.*.integrity.available"), "higher", abs_tol=0.005),
+    Family("availability", ("estimators.*.available", "estimators.*.integrity.available", "*.coverage"), "higher", abs_tol=0.005),
     Family("protection level", ("estimators.*.integrity.hpl.*",), "none"),
     Family("misleading information", ("estimators.*.integrity.misleading",), "lower", abs_tol=0.005),
     Family("misleading epochs", ("estimators.*.integrity.misleading_epochs", "estimators.*.integrity.hazardous_epochs"), "lower", abs_tol=2.0),
@@ -196,20 +197,46 @@ def align_se2(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return motion @ estimate
 
 
+def align_se3(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """estimate (N, 4, 4) moved by the rigid motion that best fits its 3-D positions to the truth's (Umeyama's least squares
+    without scale, as evo's `-a`): for odometry whose frame is unknown, tilted or not (the poses may be NaN where missing)."""
+    ok = np.isfinite(estimate[:, :3, 3]).all(axis=1) & np.isfinite(truth[:, :3, 3]).all(axis=1)
+    if ok.sum() < 3:
+        return estimate
+    p, q = estimate[ok, :3, 3], truth[ok, :3, 3]
+    pc, qc = p.mean(axis=0), q.mean(axis=0)
+    u, _, vt = np.linalg.svd((q - qc).T @ (p - pc))
+    flip = np.diag([1.0, 1.0, np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0])
+    motion = np.eye(4)
+    motion[:3, :3] = u @ flip @ vt
+    motion[:3, 3] = qc - motion[:3, :3] @ pc
+    return motion @ estimate
+
+
 ALERT_LIMIT_M = 10.0
 """The default horizontal alert limit (scenarios.spec.scenario.IntegrityConfig)."""
+
+
+def estimate_metrics(estimate: np.ndarray, truth: np.ndarray, scan_t: np.ndarray, windows: list[win.Window]) -> dict:
+    """What an estimate in the world (N, 4, 4) at the scan times is scored by against the truth there: available (share of
+    scans with a pose), ape, rpe per distance, yaw and the GPS-degradation windows (what every estimator gets, built in or
+    scored in afterwards by scenarios.pipeline.rescore)."""
+    error = horizontal_error(estimate, truth)
+    yaw_error = yaw_error_deg(estimate, truth)
+    return {
+        "available": float(np.isfinite(error).mean()) if len(error) else math.nan,
+        "ape": stats(error),
+        **{f"rpe_{d:g}m": rpe(estimate, truth, d) for d in RPE_DISTANCES_M},
+        "yaw": stats(yaw_error),
+        "windows": window_metrics(windows, scan_t, error, yaw_error),
+    }
 
 
 def estimator_metrics(rec: RunRecord, eid: str, windows: list[win.Window], alert_limit_m: float = ALERT_LIMIT_M) -> dict:
     est, truth = rec.estimates[eid], rec.truth
     error = horizontal_error(est, truth)
-    yaw_error = yaw_error_deg(est, truth)
     out = {
-        "available": float(np.isfinite(error).mean()) if len(error) else math.nan,
-        "ape": stats(error),
-        **{f"rpe_{d:g}m": rpe(est, truth, d) for d in RPE_DISTANCES_M},
-        "yaw": stats(yaw_error),
-        "windows": window_metrics(windows, rec.scan_t, error, yaw_error),
+        **estimate_metrics(est, truth, rec.scan_t, windows),
         "monitor": monitor_metrics(rec.fixes, eid),
         "integrity": integrity_metrics(error, rec.protection.get(eid, np.full(len(error), math.nan)), alert_limit_m),
     }
@@ -333,7 +360,6 @@ def matcher_metrics(rec: RunRecord, mid: str) -> dict:
     attempts = np.arange(len(m.ok)) > 0  # the first scan has nothing to match against
     registered = attempts & ~m.gated  # a gated scan is dropped before registration: it costs nothing
     seconds = m.seconds[registered]
-    aligned = align_se2(m.pose, rec.truth)
     out = {
         "success": float(m.ok[attempts].mean()) if attempts.any() else math.nan,
         "gated": float(m.gated.mean()) if len(m.gated) else math.nan,
@@ -348,16 +374,25 @@ def matcher_metrics(rec: RunRecord, mid: str) -> dict:
             "p10": float(np.percentile(m.points, 10)) if len(m.points) else math.nan,
             "p90": float(np.percentile(m.points, 90)) if len(m.points) else math.nan,
         },
-        "ape": stats(horizontal_error(m.pose, rec.truth)),
-        "ape_aligned": stats(horizontal_error(aligned, rec.truth)),
-        **{f"rpe_{d:g}m": rpe(m.pose, rec.truth, d) for d in RPE_DISTANCES_M},
-        "yaw": stats(yaw_error_deg(m.pose, rec.truth)),
+        **odometry_metrics(m.pose, rec.truth),
     }
     failed = [f for f in rec.failures if f["component"] == "matcher" and f["id"] == mid]
     out["failed"] = bool(failed)
     if failed:
         out["failed_at"] = failed[0]["stamp"]
     return out
+
+
+def odometry_metrics(pose: np.ndarray, truth: np.ndarray) -> dict:
+    """What odometry laid onto the world (N, 4, 4) at the scan times is scored by against the truth there: ape, ape_aligned
+    (after the best-fit rigid planar motion, align_se2), rpe per distance and yaw (what every matcher gets, built in or
+    scored in afterwards by scenarios.pipeline.rescore)."""
+    return {
+        "ape": stats(horizontal_error(pose, truth)),
+        "ape_aligned": stats(horizontal_error(align_se2(pose, truth), truth)),
+        **{f"rpe_{d:g}m": rpe(pose, truth, d) for d in RPE_DISTANCES_M},
+        "yaw": stats(yaw_error_deg(pose, truth)),
+    }
 
 
 def gps_metrics(fixes: FixTable) -> dict:

@@ -67,6 +67,7 @@ QUANTITIES: tuple[Quantity, ...] = (
             "estimators.*.against_gps.fixes",
             "estimators.*.integrity.misleading_epochs",
             "estimators.*.integrity.hazardous_epochs",
+            "*.source.poses",
         ),
     ),
     Quantity("deg", 3, ("*.yaw.*",)),
@@ -78,6 +79,7 @@ QUANTITIES: tuple[Quantity, ...] = (
         4,
         (
             "*.available",
+            "*.coverage",
             "gps.availability",
             "gps.valid",
             "gps.blackout",

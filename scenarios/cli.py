@@ -718,7 +718,13 @@ def score(
     finished run directory, as if its component had run inside: APE, RPE, yaw, an estimator's GPS-degradation windows,
     coverage (the share of scans with a pose), the scenario's expectations and goals again; metrics.json, NAME.tum,
     windows.csv and the report are rewritten. Bad input is one line and exit 2 with nothing written; exit 1 when an
-    expectation fails."""
+    expectation fails.
+
+    \b
+    KISS-ICP on an export of the run (docs/guide.md, Scoring a trajectory made elsewhere):
+      riverbench export runs/canal --format rosbag2 --out runs/canal_bag
+      kiss_icp_pipeline runs/canal_bag
+      riverbench score runs/canal kiss=results/latest/canal_bag_poses_tum.txt --frame lidar --anchor first"""
     from scenarios.pipeline.rescore import score as score_in
     from scenarios.score.external import Contract
 

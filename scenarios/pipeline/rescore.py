@@ -105,14 +105,13 @@ class FinishedRun:
 @dataclass(frozen=True)
 class Scored:
     """A trajectory scored into a run: the run directory, the component's name, its section of metrics.json and node,
-    and the scenario's expectations and goals judged again."""
+    and the scenario's expectations judged again."""
 
     run_dir: Path
     name: str
     section: str
     node: dict
     outcomes: list[Outcome]
-    goals: list[dict]
 
     @property
     def passed(self) -> bool:
@@ -135,30 +134,39 @@ def score(run_dir: Path, name: str, file: Path, contract: Contract, *, replace: 
     t = external.on_run_clock(trajectory, file, contract.clock, run.span)
     poses = anchoring.to_base_link(trajectory.poses, contract.frame, run.mount)
     placed = anchoring.anchored(anchoring.on_scans(t, poses, run.scan_t, run.span.tolerance_s), run.truth, contract.anchor)
-    measured = (
-        metrics.estimate_metrics(placed, run.truth, run.scan_t, run.windows)
-        if contract.section == "estimators"
-        else metrics.odometry_metrics(placed, run.truth)
-    )
-    have = np.isfinite(placed).all(axis=(1, 2))
-    node = {**measured, "coverage": float(have.mean()) if len(have) else float("nan"), "source": source(file, contract, len(trajectory.poses))}
+    node = measured(run, placed, contract.section) | {"source": source(file, contract, len(trajectory.poses))}
     node = units.rounded(metrics.json_safe({contract.section: {name: node}}))[contract.section][name]
-    tree = {s: {k: v for k, v in run.metrics.get(s, {}).items() if k != name} for s in SECTIONS}
-    tree = {**run.metrics, **tree}
-    tree[contract.section][name] = node
-    outcomes = [e.check(tree) for e in run.scenario.expectations()]
-    goals = [o.as_goal() for o in (g.check(tree) for g in run.scenario.goal_checks())]
-    tree = metrics.json_safe(ordered({**tree, "expectations": [o.as_dict() for o in outcomes], "goals": goals}))
-    error = metrics.horizontal_error(placed, run.truth) if contract.section == "estimators" else None
+    tree, outcomes = judged(run, name, contract.section, node)
     with staged(run.path) as tmp:
         (tmp / "metrics.json").write_text(json.dumps(tree, indent=2) + "\n")
         files.write_tum(tmp / f"{name}.tum", run.scan_t, files.waterline(placed), run.span.zero_ns)
+        error = metrics.horizontal_error(placed, run.truth) if contract.section == "estimators" else None
         rewrite_windows_csv(tmp / "windows.csv", run, name, error)
         if report:
             from scenarios.report import run_report
 
             run_report.write(tmp, scenario=run.scenario)
-    return Scored(run.path, name, contract.section, node, outcomes, goals)
+    return Scored(run.path, name, contract.section, node, outcomes)
+
+
+def measured(run: FinishedRun, placed: np.ndarray, section: str) -> dict:
+    """The metrics of poses laid onto the run's scans (NaN: none), as an estimator's or a matcher's, and their coverage."""
+    if section == "estimators":
+        node = metrics.estimate_metrics(placed, run.truth, run.scan_t, run.windows)
+    else:
+        node = metrics.odometry_metrics(placed, run.truth)
+    have = np.isfinite(placed).all(axis=(1, 2))
+    return node | {"coverage": float(have.mean()) if len(have) else float("nan")}
+
+
+def judged(run: FinishedRun, name: str, section: str, node: dict) -> tuple[dict, list[Outcome]]:
+    """The run's metrics tree with `node` as `section`.`name` (in place of any earlier one of that name) and the scenario's
+    expectations and goals judged on it again; with the expectations' outcomes."""
+    tree = run.metrics | {s: {k: v for k, v in run.metrics.get(s, {}).items() if k != name} for s in SECTIONS}
+    tree[section][name] = node
+    outcomes = [e.check(tree) for e in run.scenario.expectations()]
+    goals = [o.as_goal() for o in (g.check(tree) for g in run.scenario.goal_checks())]
+    return metrics.json_safe(ordered(tree | {"expectations": [o.as_dict() for o in outcomes], "goals": goals})), outcomes
 
 
 def source(file: Path, contract: Contract, poses: int) -> dict:

@@ -12,7 +12,8 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
 @pytest.mark.slow
-@pytest.mark.exhaustive  # 271 s of CI's 2 cores at 689ae21; its calls (SweepPlan, run_sweep, rank, compare) are tests/test_sweep.py's and tests/test_report.py's
+# exhaustive: 271 s of CI's 2 cores at 689ae21; its calls (SweepPlan, run_sweep, rank, compare) are test_sweep's and test_report's
+@pytest.mark.exhaustive
 def test_the_voxel_sweep_example_ranks_three_sizes_and_writes_a_report(tmp_path):
     done = subprocess.run([sys.executable, str(EXAMPLES / "sweep_gicp_voxel.py"), str(tmp_path)], capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr

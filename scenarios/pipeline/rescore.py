@@ -71,8 +71,12 @@ class FinishedRun:
                 raise ValueError(f"{path}: no {needed}, not a finished run directory (what `riverbench run` writes)")
         if not (path / "groundtruth.tum").is_file():
             raise ValueError(f"{path}: no groundtruth.tum, so no truth to score against (a replay has none)")
-        scenario = scenarios.load(path / "scenario.toml")
-        tree = json.loads((path / "metrics.json").read_text())
+        return cls.read(path, scenarios.load(path / "scenario.toml"), json.loads((path / "metrics.json").read_text()))
+
+    @classmethod
+    def read(cls, path: Path, scenario: Scenario, tree: dict) -> FinishedRun:
+        """The run directory `path` of `scenario` with the metrics tree `tree` (a run scoring its command components
+        before it writes metrics.json): its truth and windows read from groundtruth.tum and windows.csv."""
         rows = files.read_tum(path / "groundtruth.tum", scenario_time=True)
         truth = np.tile(np.eye(4), (len(rows), 1, 1))
         truth[:, :3, :3] = Rotation.from_quat(rows[:, 4:8]).as_matrix()
@@ -130,11 +134,8 @@ def score(run_dir: Path, name: str, file: Path, contract: Contract, *, replace: 
     bad input is a ValueError of one line, with nothing written."""
     run = FinishedRun.open(run_dir)
     run.check_name(name, replace)
-    trajectory = external.read(file, contract)
-    t = external.on_run_clock(trajectory, file, contract.clock, run.span)
-    poses = anchoring.to_base_link(trajectory.poses, contract.frame, run.mount)
-    placed = anchoring.anchored(anchoring.on_scans(t, poses, run.scan_t, run.span.tolerance_s), run.truth, contract.anchor)
-    node = measured(run, placed, contract.section) | {"source": source(file, contract, len(trajectory.poses))}
+    count, placed = laid(run, file, contract)
+    node = measured(run, placed, contract.section) | {"source": source(file, contract, count)}
     node = units.rounded(metrics.json_safe({contract.section: {name: node}}))[contract.section][name]
     tree, outcomes = judged(run, name, contract.section, node)
     with staged(run.path) as tmp:
@@ -147,6 +148,15 @@ def score(run_dir: Path, name: str, file: Path, contract: Contract, *, replace: 
 
             run_report.write(tmp, scenario=run.scenario)
     return Scored(run.path, name, contract.section, node, outcomes)
+
+
+def laid(run: FinishedRun, file: Path, contract: Contract) -> tuple[int, np.ndarray]:
+    """The trajectory `file` read and checked under `contract` (ValueError: one line) and laid onto the run's scans
+    (NaN: a scan without a pose); with the number of poses it holds."""
+    trajectory = external.read(file, contract)
+    t = external.on_run_clock(trajectory, file, contract.clock, run.span)
+    poses = anchoring.to_base_link(trajectory.poses, contract.frame, run.mount)
+    return len(poses), anchoring.anchored(anchoring.on_scans(t, poses, run.scan_t, run.span.tolerance_s), run.truth, contract.anchor)
 
 
 def measured(run: FinishedRun, placed: np.ndarray, section: str) -> dict:

@@ -28,7 +28,7 @@ import tomli_w
 from riverbench import provenance
 from riverbench.provenance import peak_rss_mb
 from riverbench.unixtime import unix_ns
-from scenarios.pipeline import files
+from scenarios.pipeline import external, files
 from scenarios.pipeline.assembly import assemble, matcher_setups
 from scenarios.pipeline.feed import LOOKAHEAD_SCANS, PIPELINED_SCANS, Feed, RunFailed, RunInterrupted, nmea_writer  # noqa: F401 (RunFailed, RunInterrupted: part of this module's API)
 from scenarios.pipeline.matcher_pool import MatcherPool
@@ -89,6 +89,7 @@ def run(
     out = Path(out_dir) if out_dir is not None else default_out_dir(scenario)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"output directory {out} exists and is not empty")
+    external.check(scenario)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
@@ -107,6 +108,7 @@ def run(
 
 
 def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progress, observer: RunObserver | None) -> tuple[dict, list[Outcome]]:
+    recorded = external.recordings(scenario)  # the command components' recordings: cached, or written now
     wall_start = time.perf_counter()
     stack = assemble(scenario)
     if observer is not None:
@@ -163,24 +165,38 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         files.write_movers_csv(tmp / "movers.csv", traffic_log)
     vessel_node = vessel_log.metrics(vessel_run.watch.log, scenario.control.clearance_threshold_m, lidar.revolution_s)
     files.write_vessel_csv(tmp / "vessel.csv", vessel_run.watch.log)
-    return _write(scenario, tmp, rec, run_info, vessel_node, 1.0 / receiver.rate_hz, report)
+    return _write(scenario, tmp, rec, run_info, vessel_node, 1.0 / receiver.rate_hz, report, recorded)
 
 
 def _write(
-    scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel: dict, fix_period: float, report: bool
+    scenario: Scenario, tmp: Path, rec: RunRecord, run_info: dict, vessel: dict, fix_period: float, report: bool, recorded: dict
 ) -> tuple[dict, list[Outcome]]:
+    """Score the run, run and score its command components (`recorded`: their recordings by format), judge the
+    expectations and goals and write every file."""
     windows = win.find(rec.fixes, rec.injected, fix_period)
     tree = metrics.compute(rec, windows, run_info, vessel, scenario.integrity.alert_limit_m)
     safe = units.rounded(metrics.json_safe(tree))  # expectations judge the numbers metrics.json shows
+    _write_files(scenario, tmp, rec, windows)
+    if scenario.commands:
+        safe = external.score_into(scenario, tmp, safe, recorded)
     outcomes = [e.check(safe) for e in scenario.expectations()]
     safe["expectations"] = [o.as_dict() for o in outcomes]
     safe["goals"] = [o.as_goal() for o in (g.check(safe) for g in scenario.goal_checks())]
     safe = {"provenance": provenance.collect(), **safe, "units": units.block()}
+    (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")
+    if report:
+        from scenarios.report import run_report as report_module
+
+        report_module.write(tmp, scenario=scenario)
+    return safe, outcomes
+
+
+def _write_files(scenario: Scenario, tmp: Path, rec: RunRecord, windows: list[win.Window]) -> None:
+    """The run directory's files besides metrics.json and the report."""
     (tmp / "scenario.toml").write_text(
         f"# resolved scenario {scenario.hash}: every default filled in; `riverbench run` this file to reproduce the run\n"
         + tomli_w.dumps(scenario.resolved())
     )
-    (tmp / "metrics.json").write_text(json.dumps(metrics.json_safe(safe), indent=2) + "\n")
     zero = unix_ns(scenario.gnss.epoch_utc)  # UNIX time of scenario time 0 (scenarios.pipeline.files: time, height)
     files.write_tum(tmp / "groundtruth.tum", rec.scan_t, files.waterline(rec.truth), zero)
     for eid, poses in rec.estimates.items():
@@ -191,8 +207,3 @@ def _write(
     errors = {eid: metrics.horizontal_error(p, rec.truth) for eid, p in rec.estimates.items()}
     files.write_windows_csv(tmp / "windows.csv", windows, rec, errors)
     files.write_scans_csv(tmp / "scans.csv", rec)
-    if report:
-        from scenarios.report import run_report as report_module
-
-        report_module.write(tmp, scenario=scenario)
-    return safe, outcomes

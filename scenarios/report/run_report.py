@@ -96,6 +96,7 @@ def build(ctx: Context) -> list:
         *matchers(ctx),
         *figures(ctx, "matchers"),
         *scored_in(ctx),
+        *commands(ctx),
     ]
 
 
@@ -358,8 +359,10 @@ def _without_monitor(node: dict) -> dict:
 
 
 def _failed_label(eid: str, node: dict) -> str:
-    """The row label of an estimator or matcher: its id, and when it failed."""
-    return f"{eid} (failed at {num(node.get('failed_at'), '.1f')} s)" if node.get("failed") else eid
+    """The row label of an estimator or matcher: its id, and when it failed (a command component fails as a whole)."""
+    if not node.get("failed"):
+        return eid
+    return f"{eid} (failed at {num(node.get('failed_at'), '.1f')} s)" if node.get("failed_at") is not None else f"{eid} (failed)"
 
 
 MATCHER_COLUMNS = [
@@ -429,6 +432,42 @@ def scored_in(ctx: Context) -> list:
         "of a revolution); a dropped frame counts as none. A matcher's errors are those of its trajectory anchored as stated."
     )
     return [Heading(2, "Scored in afterwards"), Table(["component", "scored as", "file", "contract", "anchor", "coverage"], rows, note)]
+
+
+def commands(ctx: Context) -> list:
+    """The command components (an executable run on the run's recording): how each ended and what it cost apart from the
+    bench (none: no section)."""
+    rows = []
+    for section in ("estimators", "matchers"):
+        for cid, node in ctx.metrics.get(section, {}).items():
+            ext = node.get("external")
+            if not isinstance(ext, dict):
+                continue
+            status = Cell(f"failed: {node.get('reason', '')}", css="fail") if node.get("failed") else Cell("ok", css="pass")
+            cached = "cached" if ext.get("recording_cached") else f"written in {num(ext.get('recording_s'), '.1f')} s"
+            rows.append(
+                [
+                    Cell(cid),
+                    Cell(section[:-1]),
+                    status,
+                    Cell(str(ext.get("exit_code", NULL))),
+                    Cell(num(ext.get("wall_s"), ".2f")),
+                    Cell(num(ext.get("cpu_s"), ".2f")),
+                    Cell(num(ext.get("peak_rss_mb"), ".0f")),
+                    Cell(f"{ext.get('recording')} ({cached})", css="text"),
+                    Cell(str(ext.get("output", NULL)), css="text"),
+                ]
+            )
+    if not rows:
+        return []
+    note = (
+        "Command components: an executable run on the scenario's recording after the built-ins, its trajectory read back "
+        "under the declared contract and scored in the tables above. Wall, CPU (user + system, its child processes "
+        "included) and peak memory are the command's own, apart from the bench's in the header; the recording is written "
+        "once per setup into a cache and reused. Its stdout and stderr are in commands/<id>.stdout.log and .stderr.log."
+    )
+    header = ["component", "scored as", "status", "exit code", "wall (s)", "CPU (s)", "peak memory (MB)", "recording", "output"]
+    return [Heading(2, "Command components"), Table(header, rows, note)]
 
 
 def gps(ctx: Context) -> list:

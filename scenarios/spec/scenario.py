@@ -22,6 +22,8 @@ from fusion.params import DEFAULT_SENSORS
 from riverbench.errors import validation_message
 from riverbench.plugins import is_path as is_plugin_path
 from scenarios.score.expectations import Expectation
+from scenarios.spec.command import KIND as COMMAND
+from scenarios.spec.command import CommandSpec
 from sim.autopilot import AutopilotConfig
 from sim.dynamics import WamvDynamics
 from sim.gnss import GnssConfig
@@ -301,6 +303,16 @@ class Scenario(BaseModel):
         "the algorithms shown in plain sight, not a failed run",
     )
     fast: FastVariant | None = Field(None, description="the short variant `--fast` runs (run, sweep, suite)")
+    command_matchers: list[CommandSpec] = Field(
+        default_factory=list,
+        exclude=True,
+        description="the [[matchers]] of kind 'command' (scenarios.spec.command), gathered here at load and written back there",
+    )
+    command_estimators: list[CommandSpec] = Field(
+        default_factory=list,
+        exclude=True,
+        description="the [[estimators]] of kind 'command', gathered here at load and written back there",
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -308,6 +320,7 @@ class Scenario(BaseModel):
         """Reject per-section seeds; give estimators the boat's real mount and antenna unless they set their own."""
         if not isinstance(data, dict):
             return data
+        data = _gather_commands(data)
         for section in SEEDED_SECTIONS:
             if isinstance(data.get(section), dict) and "seed" in data[section]:
                 raise ValueError(f"{section}.seed: every component takes the scenario's top-level seed; set 'seed' there")
@@ -330,9 +343,15 @@ class Scenario(BaseModel):
                 raise ValueError(f"world_params: {exc}") from None
         elif not Path(self.world).suffix:
             raise ValueError(f"world: unknown world {self.world!r}; available: {', '.join(worlds.available())} (or a mesh file)")
-        _unique("matchers and estimators", [m.id for m in self.matchers] + [e.id for e in self.estimators] + ["groundtruth"])
+        commands = [c.id for c in [*self.command_matchers, *self.command_estimators]]
+        _unique("matchers and estimators", [m.id for m in self.matchers] + [e.id for e in self.estimators] + commands + ["groundtruth"])
         matcher_ids = [m.id for m in self.matchers]
         for est in self.estimators:
+            if est.matcher in [c.id for c in self.command_matchers]:
+                raise ValueError(
+                    f"estimators.{est.id}.matcher: {est.matcher!r} is a command, whose trajectory comes back after the run; "
+                    "an estimator takes a built-in or plugin matcher's odometry"
+                )
             if est.kind == "gps_only":
                 est.matcher = None
                 continue
@@ -348,7 +367,10 @@ class Scenario(BaseModel):
             raise ValueError(
                 f"control.steer_on: no estimator with id {steer!r} (have {', '.join(e.id for e in self.estimators) or 'none'}, or 'truth')"
             )
-        ids = {"estimators": set(e.id for e in self.estimators), "matchers": set(matcher_ids)}
+        ids = {
+            "estimators": {e.id for e in [*self.estimators, *self.command_estimators]},
+            "matchers": {m.id for m in [*self.matchers, *self.command_matchers]},
+        }
         self.expect = [Expectation.parse(text, ids).text for text in self.expect]
         # goals are the library's promises about its own stack: a variant that drops a component they name (a study
         # setup, --set estimators=[...]) keeps them, judged n/a there (nothing to measure), so their ids are not checked
@@ -381,7 +403,14 @@ class Scenario(BaseModel):
         data = _drop_none(self.model_dump(mode="json"))
         for section in SEEDED_SECTIONS:
             data[section].pop("seed", None)
+        for section, commands in (("matchers", self.command_matchers), ("estimators", self.command_estimators)):
+            data[section] += [_drop_none(c.model_dump(mode="json")) for c in commands]
         return data
+
+    @property
+    def commands(self) -> list[tuple[str, CommandSpec]]:
+        """Every component of kind 'command' with its section of metrics.json ('matchers' or 'estimators')."""
+        return [("matchers", c) for c in self.command_matchers] + [("estimators", c) for c in self.command_estimators]
 
     @property
     def hash(self) -> str:
@@ -417,6 +446,27 @@ class Scenario(BaseModel):
 
     def matcher_spec(self, matcher_id: str) -> MatcherSpec:
         return next(m for m in self.matchers if m.id == matcher_id)
+
+
+def _gather_commands(data: dict) -> dict:
+    """The raw data with the [[matchers]] and [[estimators]] of kind 'command' moved to command_matchers and
+    command_estimators (the built-ins' validation never sees them)."""
+    out = dict(data)
+    for section in ("matchers", "estimators"):
+        items = data.get(section)
+        if not isinstance(items, list) or not any(isinstance(i, dict) and i.get("kind") == COMMAND for i in items):
+            continue
+        out[section] = [i for i in items if not (isinstance(i, dict) and i.get("kind") == COMMAND)]
+        out[f"command_{section}"] = [_command(section, i) for i in items if isinstance(i, dict) and i.get("kind") == COMMAND]
+    return out
+
+
+def _command(section: str, item: dict) -> CommandSpec:
+    """A command component validated, a bad field one line naming it as the scenario file does: {section}.{id}."""
+    try:
+        return CommandSpec.model_validate(item)
+    except ValidationError as exc:
+        raise ValueError(validation_message(exc, f"{section}.{item.get('id', '?')}")) from None
 
 
 def _field_known(estimator: dict, data: dict) -> dict:

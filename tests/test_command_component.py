@@ -44,8 +44,9 @@ FAKE = textwrap.dedent(
     poses = np.tile(np.eye(4), (len(rows), 1, 1))
     poses[:, :3, :] = rows.reshape(-1, 3, 4)
     poses = np.linalg.inv(tr) @ poses @ tr
+    every = int(sys.argv[4])  # a pose every `every` scans
     with open(out / "poses_tum.txt", "w") as f:
-        for t, p in zip(times, poses):
+        for t, p in zip(times[::every], poses[::every]):
             w = np.sqrt(max(0.0, 1 + np.trace(p[:3, :3]))) / 2  # the fixtures' poses turn less than 180 deg
             q = [(p[2, 1] - p[1, 2]) / (4 * w), (p[0, 2] - p[2, 0]) / (4 * w), (p[1, 0] - p[0, 1]) / (4 * w), w]
             f.write(f"{t + shift:.6f} {p[0, 3]:.9f} {p[1, 3]:.9f} {p[2, 3]:.9f} {' '.join(f'{v:.12f}' for v in q)}\\n")
@@ -106,6 +107,7 @@ def runs(tmp_path_factory):
         bad("silent", "true"),
         bad("garbage", "sh -c 'echo not a pose > out/poses_tum.txt'"),
         fake("late", script, shift=3600.0),
+        fake("tenth", script, step=10),
     ]
     plan = {
         "bad": (with_commands([fake("odo", script), *failing], [fake("fused", script)]), EXPECT),
@@ -145,6 +147,7 @@ def test_a_fake_command_is_scored_exactly_as_a_matcher_and_an_estimator(runs):
         ("silent", "the command wrote no file matching output = 'out/poses_tum.txt' in its working folder"),
         ("garbage", "line 1: 3 fields, not 8 numbers"),
         ("late", "3600 s late (1 h off: a time-zone offset? UNIX time is UTC)"),
+        ("tenth", "5 poses cover 10.0% of the run's 50 scans, below min_coverage 50%"),
     ],
 )
 def test_a_bad_command_is_a_failed_component_with_its_reason(runs, cid, reason):
@@ -182,6 +185,7 @@ def test_the_recording_is_written_once_and_reused(runs):
     assert again["recording_s"] < first["recording_s"]
     assert (runs["other"].out_dir / "commands" / "odo.stdout.log").read_text().strip() == "step 2"
     assert node(runs["other"], "matchers", "odo")["ape"] == node(runs["bad"], "matchers", "odo")["ape"]
+    assert node(runs["other"], "matchers", "odo")["coverage"] == 0.5 and node(runs["bad"], "matchers", "odo")["coverage"] == 1.0
 
 
 def test_bad_command_fields_are_one_line_before_anything_runs(tmp_path):

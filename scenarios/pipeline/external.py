@@ -3,11 +3,11 @@ the built-ins are done, their trajectories read back under the score contract an
 `riverbench score` uses, into the metrics tree before the expectations are judged.
 
 Each gets a working folder commands/<id>/ (with an empty out/ for {out}) and its stdout and stderr in
-commands/<id>.stdout.log and .stderr.log. A command that exits non-zero, times out, writes no file or writes one that
-fails a contract check is a failed component: `failed` true, its one-line `reason`, no metric (so an expectation on
-it fails, never passes on nothing), an entry in run.failures; the other components are untouched. Under the
-component, `external` records what the command cost apart from the bench: exit code, wall and CPU time, peak memory,
-and the recording (format, whether the cache had it, the seconds it took).
+commands/<id>.stdout.log and .stderr.log. A command that exits non-zero, times out, writes no file, writes one that
+fails a contract check or covers fewer scans than its min_coverage is a failed component: `failed` true, its one-line
+`reason`, no metric (so an expectation on it fails, never passes on nothing), an entry in run.failures; the other
+components are untouched. Under the component, `external` records what the command cost apart from the bench: exit
+code, wall and CPU time, peak memory, and the recording (format, whether the cache had it, the seconds it took).
 """
 
 from __future__ import annotations
@@ -15,6 +15,8 @@ from __future__ import annotations
 import glob
 import os
 from pathlib import Path
+
+import numpy as np
 
 from scenarios.pipeline import command, files, recording_cache, rescore
 from scenarios.pipeline.recording_cache import Recording
@@ -75,6 +77,12 @@ def component(run: rescore.FinishedRun, section: str, spec: CommandSpec, recordi
             file = one_file(workdir, spec.output, "output")
             times = str(one_file(workdir, spec.times, "times")) if spec.times is not None else None
             count, placed = rescore.laid(run, file, spec.contract(times))
+            covered = float(np.isfinite(placed).all(axis=(1, 2)).mean()) if len(placed) else 0.0
+            if covered < spec.min_coverage:
+                raise ValueError(
+                    f"{file}: {count} poses cover {covered:.1%} of the run's {len(placed)} scans, below min_coverage "
+                    f"{spec.min_coverage:.0%} (dropped frames; a pose counts for the scan stamped within a quarter revolution)"
+                )
         except ValueError as exc:
             reason = str(exc).replace(f"{run.path}{os.sep}", "")
     if reason is not None:

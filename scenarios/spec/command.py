@@ -48,6 +48,13 @@ class CommandSpec(BaseModel):
     frame: Frame = Field("base_link", description="whose poses they are (as `riverbench score --frame`)")
     clock: Clock = Field("unix", description="the stamps' clock (as `riverbench score --clock`)")
     anchor: Anchor = Field("map", description="how the poses are laid onto the world (as `riverbench score --anchor`)")
+    min_coverage: float = Field(
+        0.5,
+        ge=0.0,
+        le=1.0,
+        description="the share of the run's scans that must get a pose (each takes the one stamped nearest it within a quarter "
+        "revolution); below it the component fails: a stack that drops most frames is not scored as if it kept up",
+    )
     timeout_s: float = Field(600.0, gt=0, description="the command is ended (SIGTERM, then SIGKILL, its process group) after this long, s")
     params: dict[str, str | int | float | bool] = Field(
         default_factory=dict, description="values for the command's {<key>} placeholders, also exported as RIVERBENCH_PARAM_<KEY>"

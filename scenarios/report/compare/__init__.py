@@ -3,11 +3,13 @@
 `write(sources, out_dir)` finds every run directory under the sources (a run, a suite or a sweep directory, at any
 depth; hidden directories are runs in progress and are skipped), groups the runs by scenario and configuration (the
 resolved scenario without its seed: runs that differ only in seed are repeats), and writes report.md, a self-contained
-report.html and plots/roc-*.png and plots/stanford-*.png. Every number is the median over a configuration's seeds with its range (min–max), so a
-reader can tell a real difference from noise; the written summary says which differences exceed that range.
+report.html and plots/*.png (APE per component and configuration, error against time, ROC, Stanford diagrams). Every
+number is the median over a configuration's seeds with its range (min–max), so a reader can tell a real difference from
+noise; the written summary says which differences exceed that range.
 
 Modules: runs (finding and reading runs), groups (configurations and spreads over seeds), roc (monitor ROC), verdicts
-(the written summary), blocks (the report's blocks, rendered by scenarios.report.run_report).
+(the written summary), figures (APE and error against time over seeds), blocks (the report's blocks, rendered by
+scenarios.report.run_report).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from pathlib import Path
 
 from riverbench.atomic import atomic_dir
 from scenarios.report import document
-from scenarios.report.compare import blocks, groups, runs, verdicts
+from scenarios.report.compare import blocks, figures, groups, runs, verdicts
 from scenarios.report.compare.against import section as baseline_section
 from scenarios.score.regression import Comparison
 
@@ -31,7 +33,7 @@ def write(sources: list[Path], out_dir: Path, against: Comparison | None = None)
     confs = groups.configurations([runs.read_run(p) for p in run_dirs])
     stopped = runs.unfinished(listings)
     with atomic_dir(out_dir) as tmp:
-        images = blocks.draw_rocs(confs, tmp) | blocks.draw_stanfords(confs, tmp)
+        images = figures.draw(confs, tmp) | blocks.draw_rocs(confs, tmp) | blocks.draw_stanfords(confs, tmp)
         page = blocks.build(confs, images, stopped, out_dir)
         if against is not None:
             page[3:3] = baseline_section(against)  # after the title, what was compared and how to read it

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from scenarios.report import document, plots, stanford
 from scenarios.report import run_report as report
+from scenarios.report.compare import figures
 from scenarios.report.compare.groups import (
     ACCURACY,
     APE_ALIGNED,
@@ -49,7 +50,7 @@ def build(confs: list[Configuration], images: dict[str, str], stopped: list[Unfi
     """Every block of the comparison report, in reading order."""
     return [
         *header(confs),
-        *summary_section(confs),
+        *summary_section(confs, images),
         *(b for conf in confs for b in conf_section(conf, images)),
         *unfinished_section(stopped, out_dir),
         *runs_section(confs, out_dir),
@@ -76,9 +77,27 @@ def header(confs: list[Configuration]) -> list:
     ]
 
 
-def summary_section(confs: list[Configuration]) -> list:
-    """The written summary over all configurations, then the cross-scenario tables."""
-    return [Heading(2, "Summary"), *(Text(s) for s in overall_sentences(confs)), *summary_blocks(confs)]
+def summary_section(confs: list[Configuration], images: dict[str, str]) -> list:
+    """The written summary over all configurations, the APE figures, then the cross-scenario tables."""
+    return [Heading(2, "Summary"), *(Text(s) for s in overall_sentences(confs)), *ape_blocks(images), *summary_blocks(confs)]
+
+
+def ape_blocks(images: dict[str, str]) -> list:
+    """The APE figures (estimators, matchers) that were drawn, captioned."""
+    captions = {
+        "estimators": "Each estimator's APE p95 (horizontal, m) in each configuration",
+        "matchers": "Each matcher's odometry APE rmse after the best-fit planar motion (aligned, m) in each configuration",
+    }
+    return [
+        Image(
+            images[figures.APE_KEY + kind],
+            f"{caption}: dot at the median over the seeds in which it did not fail, bar from "
+            "their min to max, printed on the right; sorted lowest first within a configuration; a logarithmic axis when the values "
+            "span more than 30 times.",
+        )
+        for kind, caption in captions.items()
+        if figures.APE_KEY + kind in images
+    ]
 
 
 def summary_blocks(confs: list[Configuration]) -> list:
@@ -201,8 +220,23 @@ def conf_section(conf: Configuration, images: dict[str, str]) -> list:
         )
     )
     blocks += [Text(s) for s in conf_sentences(conf)]
+    blocks += error_blocks(conf, images)
     blocks += estimator_tables(conf) + matcher_tables(conf) + roc_blocks(conf, images) + stanford_blocks(conf, images)
     return blocks
+
+
+def error_blocks(conf: Configuration, images: dict[str, str]) -> list:
+    """The configuration's error-against-time figure, or nothing when no run holds a component's poses."""
+    key = figures.ERROR_KEY + conf.title
+    if key not in images:
+        return []
+    caption = (
+        f"Horizontal error against time of each component over {plural(len(conf.runs), 'run')}: estimators (their estimate "
+        "against the truth) and matchers (their odometry after the best-fit planar motion, as its aligned APE); a line per "
+        "component at the median over seeds, each seed faintly behind it; GPS-degradation windows (blackout under bridges, "
+        "NLOS beside walls, re-acquisition after a blackout) of any of the runs shaded."
+    )
+    return [Heading(3, "Error against time"), Image(images[key], caption)]
 
 
 def stanford_blocks(conf: Configuration, images: dict[str, str]) -> list:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -141,3 +142,22 @@ def test_the_error_curves_are_what_metrics_json_scores(real_runs):
                 finite = values[np.isfinite(values)]
                 assert float(np.sqrt(np.mean(finite**2))) == pytest.approx(node["rmse"], abs=2e-3), (cid, run.seed)
                 assert float(finite.max()) == pytest.approx(node["max"], abs=2e-3), (cid, run.seed)
+
+
+def test_a_trajectory_scored_into_one_run_is_drawn_with_its_aligned_ape(real_runs, tmp_path):
+    """`riverbench score`'s path: gps_only's poses scored into one seed as odometry (anchor first: a matcher) appear in both
+    figures for that seed alone, with the aligned APE metrics.json holds."""
+    from scenarios.pipeline import rescore
+    from scenarios.score.external import Contract
+
+    shutil.copytree(real_runs / "runs", tmp_path / "runs")
+    one = tmp_path / "runs" / "open_river-1"
+    rescore.score(one, "mine", one / "gps_only.tum", Contract(anchor="first"), report=False)
+    node = json.loads((one / "metrics.json").read_text())["matchers"]["mine"]["ape_aligned"]
+    (conf,) = groups.configurations(compare.collect([tmp_path / "runs"]))
+    (row,) = [r for r in figures.ape_rows([conf], "matchers") if r.component == "mine"]
+    assert row.runs == 1 and row.spread is not None and (row.spread.median, row.spread.n) == (node["rmse"], 1)
+    (values,) = figures.error_curves(conf, "matchers")["mine"].seeds
+    assert float(np.sqrt(np.nanmean(values**2))) == pytest.approx(node["rmse"], abs=2e-3)
+    compare.write([tmp_path / "runs"], tmp_path / "report")
+    assert (tmp_path / "report" / "plots" / "ape-matchers.png").exists()

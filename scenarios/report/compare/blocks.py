@@ -83,12 +83,12 @@ def summary_section(confs: list[Configuration], images: dict[str, str]) -> list:
 
 
 def ape_blocks(images: dict[str, str]) -> list:
-    """The APE figures (estimators, matchers) that were drawn, captioned."""
+    """The APE figures (estimators, matchers) that were drawn, captioned under one heading (none drawn: nothing)."""
     captions = {
         "estimators": "Each estimator's APE p95 (horizontal, m) in each configuration",
         "matchers": "Each matcher's odometry APE rmse after the best-fit planar motion (aligned, m) in each configuration",
     }
-    return [
+    drawn = [
         Image(
             images[figures.APE_KEY + kind],
             f"{caption}: dot at the median over the seeds in which it did not fail, bar from "
@@ -98,6 +98,7 @@ def ape_blocks(images: dict[str, str]) -> list:
         for kind, caption in captions.items()
         if figures.APE_KEY + kind in images
     ]
+    return [Heading(3, "APE per component and configuration"), *drawn] if drawn else []
 
 
 def summary_blocks(confs: list[Configuration]) -> list:

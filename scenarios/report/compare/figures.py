@@ -233,7 +233,7 @@ def error_figure(conf: Configuration, palette: dict[str, Style]) -> Figure | Non
     seeds = len(conf.runs)
     for ax, (kind, curves) in zip(axes, panels.items()):
         patches = shade(ax, windows)
-        handles = [_draw_curves(ax, cid, c, palette[cid]) for cid, c in curves.items()]
+        handles = [_draw_curves(ax, _curve_label(cid, c, seeds), c, palette[cid]) for cid, c in curves.items()]
         top = plots.clip_limit([v for c in curves.values() for v in c.seeds], floor=1.0)
         ax.set_ylim(0, top)
         peaks = [f"{cid} {np.nanmax(np.vstack(c.seeds)):.0f} m" for cid, c in curves.items() if np.nanmax(np.vstack(c.seeds)) > top]
@@ -262,12 +262,17 @@ def shade(ax, windows: list[plots.Window]) -> list[Patch]:
     return [Patch(color=plots.WINDOW_COLOURS.get(k, "grey"), alpha=0.3, label=k) for k in kinds]
 
 
-def _draw_curves(ax, cid: str, curves: Curves, style: Style) -> Line2D:
-    """Each seed's line faintly (with more than one) and the median over seeds; returns the median's line."""
+def _curve_label(cid: str, curves: Curves, runs: int) -> str:
+    """The component id, with how many of the configuration's runs hold its poses when not all do."""
+    return cid if len(curves.seeds) == runs else f"{cid} ({len(curves.seeds)} of {plural(runs, 'run')})"
+
+
+def _draw_curves(ax, label: str, curves: Curves, style: Style) -> Line2D:
+    """Each seed's line faintly (with more than one) and the median over seeds, labelled; returns the median's line."""
     if len(curves.seeds) > 1:
         for values in curves.seeds:
             ax.plot(curves.t, values, color=style.colour, ls=style.dash, lw=0.7, alpha=SEED_ALPHA)
-    (line,) = ax.plot(curves.t, curves.median, color=style.colour, ls=style.dash, lw=1.6, label=cid)
+    (line,) = ax.plot(curves.t, curves.median, color=style.colour, ls=style.dash, lw=1.6, label=label)
     return line
 
 

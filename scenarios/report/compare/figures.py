@@ -32,6 +32,9 @@ ERROR_KEY = "error:"
 """Prefix of a configuration's error-against-time figure among the drawn images (then its title)."""
 SEED_ALPHA = 0.3
 """Opacity of each seed's own line behind the median over seeds."""
+MEDIAN_LW = (1.4, 3.2)
+"""Width of the last and the first median line drawn in a panel: each line drawn over wider ones, so one that follows
+another exactly still shows as a core inside its outline."""
 ROW_IN, GROUP_IN = 0.24, 0.3
 """Height of an APE figure's row and of a configuration's heading row, inches."""
 LOG_RATIO = 30.0
@@ -148,10 +151,10 @@ class Curves:
     median: np.ndarray
 
 
-def run_errors(run: RunInfo, kind: str, cid: str) -> tuple[np.ndarray, np.ndarray]:
-    """A run's times since its first scan and the component's horizontal error there from its <id>.tum; a matcher's after
-    the best-fit planar motion (align_se2), as its aligned APE is measured. Empty when the run has no such file or poses."""
-    truth = plots.read_tum(run.path / "groundtruth.tum")
+def run_errors(run: RunInfo, truth: plots.Track, kind: str, cid: str) -> tuple[np.ndarray, np.ndarray]:
+    """A run's times since its first scan and the component's horizontal error there from its <id>.tum against the run's
+    truth; a matcher's after the best-fit planar motion (align_se2), as its aligned APE is measured. Empty when the run has
+    no such file or poses."""
     track = plots.read_tum(run.path / f"{cid}.tum")
     if not len(truth.t) or not len(track.t):
         return np.zeros(0), np.zeros(0)
@@ -186,9 +189,10 @@ def on_grid(t: np.ndarray, values: np.ndarray, grid: np.ndarray) -> np.ndarray:
 
 def error_curves(conf: Configuration, kind: str) -> dict[str, Curves]:
     """Each component's error curves over the configuration's runs (those whose runs hold no poses left out)."""
+    truths = {run.path: plots.read_tum(run.path / "groundtruth.tum") for run in conf.runs}
     out = {}
     for cid in getattr(conf, kind):
-        series = [run_errors(run, kind, cid) for run in conf.runs if cid in (run.metrics.get(kind) or {})]
+        series = [run_errors(run, truths[run.path], kind, cid) for run in conf.runs if cid in (run.metrics.get(kind) or {})]
         series = [(t, e) for t, e in series if len(t)]
         if not series:
             continue
@@ -233,7 +237,8 @@ def error_figure(conf: Configuration, palette: dict[str, Style]) -> Figure | Non
     seeds = len(conf.runs)
     for ax, (kind, curves) in zip(axes, panels.items()):
         patches = shade(ax, windows)
-        handles = [_draw_curves(ax, _curve_label(cid, c, seeds), c, palette[cid]) for cid, c in curves.items()]
+        widths = np.linspace(MEDIAN_LW[1], MEDIAN_LW[0], len(curves)) if len(curves) > 1 else [MEDIAN_LW[0]]
+        handles = [_draw_curves(ax, _curve_label(cid, c, seeds), c, palette[cid], w) for (cid, c), w in zip(curves.items(), widths)]
         top = plots.clip_limit([v for c in curves.values() for v in c.seeds], floor=1.0)
         ax.set_ylim(0, top)
         peaks = [f"{cid} {np.nanmax(np.vstack(c.seeds)):.0f} m" for cid, c in curves.items() if np.nanmax(np.vstack(c.seeds)) > top]
@@ -267,12 +272,12 @@ def _curve_label(cid: str, curves: Curves, runs: int) -> str:
     return cid if len(curves.seeds) == runs else f"{cid} ({len(curves.seeds)} of {plural(runs, 'run')})"
 
 
-def _draw_curves(ax, label: str, curves: Curves, style: Style) -> Line2D:
+def _draw_curves(ax, label: str, curves: Curves, style: Style, width: float) -> Line2D:
     """Each seed's line faintly (with more than one) and the median over seeds, labelled; returns the median's line."""
     if len(curves.seeds) > 1:
         for values in curves.seeds:
             ax.plot(curves.t, values, color=style.colour, ls=style.dash, lw=0.7, alpha=SEED_ALPHA)
-    (line,) = ax.plot(curves.t, curves.median, color=style.colour, ls=style.dash, lw=1.6, label=label)
+    (line,) = ax.plot(curves.t, curves.median, color=style.colour, ls=style.dash, lw=width, label=label)
     return line
 
 

@@ -35,6 +35,8 @@ SEED_ALPHA = 0.3
 MEDIAN_LW = (1.4, 3.2)
 """Width of the last and the first median line drawn in a panel: each line drawn over wider ones, so one that follows
 another exactly still shows as a core inside its outline."""
+PANEL_IN, LEGEND_ROW_IN = 3.2, 0.18
+"""Height of an error panel, inches, unless its legend (a row per component and window kind) needs more."""
 ROW_IN, GROUP_IN = 0.24, 0.3
 """Height of an APE figure's row and of a configuration's heading row, inches."""
 LOG_RATIO = 30.0
@@ -231,9 +233,11 @@ def error_figure(conf: Configuration, palette: dict[str, Style]) -> Figure | Non
     panels = {kind: curves for kind in KINDS if (curves := error_curves(conf, kind))}
     if not panels:
         return None
-    figure = Figure(figsize=(plots.WIDTH_IN, 0.6 + 3.2 * len(panels)), layout="constrained")
-    axes = figure.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     windows = merged_windows(conf)
+    entries = [len(curves) + len({w.kind for w in windows}) for curves in panels.values()]  # legend rows per panel
+    heights = [max(PANEL_IN, 0.6 + LEGEND_ROW_IN * n) for n in entries]
+    figure = Figure(figsize=(plots.WIDTH_IN, 0.6 + sum(heights)), layout="constrained")
+    axes = figure.subplots(len(panels), 1, sharex=True, squeeze=False, height_ratios=heights)[:, 0]
     seeds = len(conf.runs)
     for ax, (kind, curves) in zip(axes, panels.items()):
         patches = shade(ax, windows)

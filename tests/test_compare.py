@@ -416,22 +416,10 @@ def test_bad_input_is_one_line_naming_the_path_and_writes_nothing(tree, tmp_path
 # ---- real runs ---------------------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def real_runs(tmp_path_factory):
-    """Two seeds of 20 s of open_river (a few seconds each, matchers in this process)."""
-    import scenarios
-
-    root = tmp_path_factory.mktemp("real")
-    for seed in (0, 1):
-        scenario = scenarios.load("open_river", set=["stretch={start_s = 0.0, end_s = 20.0}"], seed=seed)
-        scenarios.run(scenario, root / "runs" / f"open_river-{seed}", workers=1, report=False)
-    return root
-
-
-def test_a_report_on_real_runs_names_every_component(real_runs):
-    path = compare.write([real_runs / "runs"], real_runs / "comparison")
-    text = (real_runs / "comparison" / "report.md").read_text()
-    assert path == real_runs / "comparison" / "report.html" and path.exists()
+def test_a_report_on_real_runs_names_every_component(real_runs, tmp_path):
+    path = compare.write([real_runs / "runs"], tmp_path / "comparison")
+    text = (tmp_path / "comparison" / "report.md").read_text()
+    assert path == tmp_path / "comparison" / "report.html" and path.exists()
     assert "2 runs · 1 scenario (open_river) · 1 configuration · seeds 0, 1 (2 per configuration)" in text
     for name in ("gps_only", "hdop_switch", "ekf", "pf", "gicp"):
         assert f"| {name} |" in text

@@ -111,21 +111,9 @@ def test_seeds_are_put_on_one_grid_by_the_nearest_stamp():
 # ---- real runs ---------------------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def real_runs(tmp_path_factory):
-    """Two seeds of 20 s of open_river: no faulty fix (so no ROC), every estimator initialised, one matcher."""
-    import scenarios
-
-    root = tmp_path_factory.mktemp("real")
-    for seed in (0, 1):
-        scenario = scenarios.load("open_river", set=["stretch={start_s = 0.0, end_s = 20.0}"], seed=seed)
-        scenarios.run(scenario, root / "runs" / f"open_river-{seed}", workers=1, report=False)
-    return root
-
-
-def test_two_runs_without_faulty_fixes_get_both_figures(real_runs):
-    path = compare.write([real_runs / "runs"], real_runs / "comparison")
-    drawn = sorted(p.name for p in (real_runs / "comparison" / "plots").iterdir())
+def test_two_runs_without_faulty_fixes_get_both_figures(real_runs, tmp_path):
+    path = compare.write([real_runs / "runs"], tmp_path / "comparison")
+    drawn = sorted(p.name for p in (tmp_path / "comparison" / "plots").iterdir())
     assert {"ape-estimators.png", "error-00-open_river.png"} <= set(drawn)
     assert "ape-matchers.png" not in drawn  # gicp matches nothing in open water: no value, so no empty figure
     page = path.read_text()

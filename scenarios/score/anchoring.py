@@ -24,16 +24,22 @@ def to_base_link(poses: np.ndarray, frame: str, mount: np.ndarray) -> np.ndarray
     return poses @ np.linalg.inv(mount) if frame == "lidar" else poses
 
 
+def nearest(t: np.ndarray, query: np.ndarray, tolerance_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """For each query time, the index of the sorted stamp `t` nearest it and whether that stamp is within `tolerance_s`
+    (t must not be empty)."""
+    right = np.clip(np.searchsorted(t, query), 0, len(t) - 1)
+    left = np.clip(right - 1, 0, len(t) - 1)
+    index = np.where(np.abs(t[left] - query) <= np.abs(t[right] - query), left, right)
+    return index, np.abs(t[index] - query) <= tolerance_s
+
+
 def on_scans(t: np.ndarray, poses: np.ndarray, scan_t: np.ndarray, tolerance_s: float) -> np.ndarray:
     """(len(scan_t), 4, 4): each scan's pose, the one stamped nearest it within `tolerance_s`, NaN where there is none."""
     out = np.full((len(scan_t), 4, 4), np.nan)
     if not len(t):
         return out
-    right = np.clip(np.searchsorted(t, scan_t), 0, len(t) - 1)
-    left = np.clip(right - 1, 0, len(t) - 1)
-    nearest = np.where(np.abs(t[left] - scan_t) <= np.abs(t[right] - scan_t), left, right)
-    hit = np.abs(t[nearest] - scan_t) <= tolerance_s
-    out[hit] = poses[nearest[hit]]
+    index, hit = nearest(t, scan_t, tolerance_s)
+    out[hit] = poses[index[hit]]
     return out
 
 

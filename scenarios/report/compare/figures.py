@@ -22,6 +22,7 @@ from scenarios.report.compare.groups import APE_ALIGNED, APE_P95, Configuration,
 from scenarios.report.compare.roc import roc_path
 from scenarios.report.compare.runs import RunInfo, plural
 from scenarios.report.document import Column
+from scenarios.score.anchoring import nearest
 from scenarios.score.metrics import align_se2
 
 KINDS = {"estimators": ("estimator", APE_P95), "matchers": ("matcher", APE_ALIGNED)}
@@ -181,11 +182,8 @@ def on_grid(t: np.ndarray, values: np.ndarray, grid: np.ndarray) -> np.ndarray:
     if not len(t) or not len(grid):
         return out
     tolerance = 0.5 * float(np.median(np.diff(grid))) if len(grid) > 1 else np.inf
-    right = np.clip(np.searchsorted(t, grid), 0, len(t) - 1)
-    left = np.clip(right - 1, 0, len(t) - 1)
-    nearest = np.where(np.abs(t[left] - grid) <= np.abs(t[right] - grid), left, right)
-    hit = np.abs(t[nearest] - grid) <= tolerance
-    out[hit] = values[nearest[hit]]
+    index, hit = nearest(t, grid, tolerance)
+    out[hit] = values[index[hit]]
     return out
 
 

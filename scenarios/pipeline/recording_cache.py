@@ -7,11 +7,14 @@ expectations, goals, [fast], the command components; in open loop also the match
 watch it), of the format and of the source of the packages that simulate and write it, so an edited simulator never
 reuses a stale recording. It lives at <cache>/recordings/<key>/ (cache: $RIVERBENCH_CACHE, else
 $XDG_CACHE_HOME/riverbench, else ~/.cache/riverbench), written under a hidden name and renamed into place whole: a
-reader sees a complete recording or none.
+reader sees a complete recording or none. The writer holds a lock on <key>.lock beside it (fcntl.flock, released by
+the kernel when its process ends, however it ends): two runs after one key, such as two sweep workers at one seed,
+write it once, the second waiting for the first and reading what it wrote.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
@@ -82,25 +85,28 @@ def code_digest() -> str:
 
 
 def get(scenario: Scenario, fmt: str, root: Path | None = None) -> Recording:
-    """The recording of `scenario` in `fmt` from the cache, written there first when it is not."""
+    """The recording of `scenario` in `fmt` from the cache, written there first when it is not (under the key's lock,
+    so it is written once however many runs ask for it at the same time)."""
     start = time.perf_counter()
     folder = (root or cache_root()) / "recordings" / key(scenario, fmt)
     if folder.is_dir():
         return Recording(folder / NAMES[fmt], True, time.perf_counter() - start)
     folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = folder.parent / f".{folder.name}.{secrets.token_hex(6)}"
-    tmp.mkdir()
-    try:
-        stream = stream_scenario(scenario)
-        write(stream, fmt, tmp / NAMES[fmt])
-        (tmp / "setup.json").write_text(json.dumps({"format": fmt, "scenario": stream.resolved()}, indent=2) + "\n")
+    with open(folder.parent / f"{folder.name}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # waits while another process writes this key
+        if folder.is_dir():  # it did: theirs is the same recording
+            return Recording(folder / NAMES[fmt], True, time.perf_counter() - start)
+        for stale in folder.parent.glob(f".{folder.name}.*"):  # a killed writer's; no one else writes this key now
+            shutil.rmtree(stale, ignore_errors=True)
+        tmp = folder.parent / f".{folder.name}.{secrets.token_hex(6)}"
+        tmp.mkdir()
         try:
+            stream = stream_scenario(scenario)
+            write(stream, fmt, tmp / NAMES[fmt])
+            (tmp / "setup.json").write_text(json.dumps({"format": fmt, "scenario": stream.resolved()}, indent=2) + "\n")
             os.rename(tmp, folder)
-        except OSError:
-            if not folder.is_dir():  # else another run wrote it first: theirs is the same recording
-                raise
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
     return Recording(folder / NAMES[fmt], False, time.perf_counter() - start)
 
 

@@ -3,7 +3,7 @@ at rest (moored at a pier), its position alone with the heading unknown until mo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -23,18 +23,39 @@ HEADING_GIVEN = "initial_pose"
 
 @dataclass(frozen=True)
 class Alignment:
-    """World pose of base_link at `stamp`, its 3x3 covariance, and what gave its heading (HEADING_*)."""
+    """World pose of base_link at `stamp`, its 3x3 covariance, what gave its heading (HEADING_*), and the receiver's
+    velocity over ground at `stamp` (world east, north, m/s; None when the receiver gives none)."""
 
     stamp: float
     pose: np.ndarray
     cov: np.ndarray
     heading_from: str = HEADING_FROM_MOTION
+    ground_velocity: np.ndarray | None = None
+
+    def start_velocity(self, odometry: tuple[np.ndarray, np.ndarray] | None, gps_sigma_mps: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The body velocity (forward, left) a filter starts with and its 2x2 covariance: the odometry's last step (3-vector
+        and 3x3 covariance, as OdometryTrack.velocity gives them) fused with the receiver's velocity over ground, uncertain
+        by gps_sigma_mps per axis, in information form. Where the matcher observed the motion its step dominates; where it
+        left a direction unobserved (a degenerate match keeps its own constant-velocity prior there, 1e6 m^2) the
+        receiver's velocity does, instead of a prior that never saw the motion (rough_water: gicp's 0.04 m/s against the
+        boat's 2 m/s at start-up). None when neither is known."""
+        ground = None if self.ground_velocity is None else rot2(-float(self.pose[2])) @ self.ground_velocity
+        if ground is None:
+            return None if odometry is None else (odometry[0][:2].copy(), odometry[1][:2, :2].copy())
+        info_gps = np.eye(2) / gps_sigma_mps**2
+        if odometry is None:
+            return ground, np.eye(2) * gps_sigma_mps**2
+        mean, cov = odometry[0][:2], odometry[1][:2, :2]
+        info_odo = np.linalg.pinv(0.5 * (cov + cov.T), hermitian=True)
+        fused = np.linalg.inv(info_odo + info_gps)
+        return fused @ (info_odo @ mean + info_gps @ ground), fused
 
 
 @dataclass(frozen=True)
 class _Sample:
     """One kept fix: its stamp, position, per-axis variance, the odometry pose at it (with the antenna lever applied) on
-    odometry chain `segment` (None without odometry), and the receiver's speed over ground (NaN when it gives none)."""
+    odometry chain `segment` (None without odometry), and the receiver's speed over ground (NaN when it gives none) and
+    velocity over ground (None when it gives none)."""
 
     stamp: float
     xy: np.ndarray
@@ -42,6 +63,7 @@ class _Sample:
     antenna_odo: np.ndarray | None
     segment: int | None
     speed_mps: float = np.nan
+    ground_velocity: np.ndarray | None = None
 
 
 class Bootstrap:
@@ -70,10 +92,11 @@ class Bootstrap:
         odo = odometry.pose_at(obs.stamp) if odometry.velocity() is not None else None
         segment = odometry.segment if odo is not None else None
         if segment is not None and segment != self._segment:  # fixes seen on an earlier (broken) chain no longer link to this one
-            self._samples = [f if f.segment in (None, segment) else _Sample(f.stamp, f.xy, f.var, None, None, f.speed_mps) for f in self._samples]
+            self._samples = [f if f.segment in (None, segment) else replace(f, antenna_odo=None, segment=None) for f in self._samples]
             self._segment = segment
         antenna = None if odo is None else odo[:2] + rot2(odo[2]) @ self.lever
-        self._samples.append(_Sample(obs.stamp, np.asarray(obs.xy, dtype=float), float(np.trace(obs.cov)) / 2.0, antenna, segment, obs.speed_mps))
+        var = float(np.trace(obs.cov)) / 2.0
+        self._samples.append(_Sample(obs.stamp, np.asarray(obs.xy, dtype=float), var, antenna, segment, obs.speed_mps, obs.ground_velocity))
         self._odo_at_last = odo
         cut = 0
         while self._samples[cut].stamp < obs.stamp - self.window_s:
@@ -142,7 +165,7 @@ class Bootstrap:
         sigma2 = max(sigma2, float(np.sum(residual**2)) / max(2 * (len(g) - 2), 1))  # per axis
         yaw_var = sigma2 / max(spread, 1e-9)
         cov = np.diag([sigma2, sigma2, yaw_var])
-        return Alignment(self._samples[-1].stamp, world, cov)
+        return Alignment(self._samples[-1].stamp, world, cov, ground_velocity=self._samples[-1].ground_velocity)
 
     def _course(self, gps: np.ndarray, sigma2: float) -> Alignment:
         """Heading from the GPS course over the most recent travel long enough for the heading
@@ -162,4 +185,5 @@ class Bootstrap:
         yaw = float(wrap_angle(np.arctan2(d[1], d[0])))
         xy = gps[-1] - rot2(yaw) @ self.lever
         yaw_var = 2.0 * sigma2 / max(float(d @ d), 1e-9)
-        return Alignment(self._samples[-1].stamp, np.array([xy[0], xy[1], yaw]), np.diag([sigma2, sigma2, yaw_var]))
+        pose, cov = np.array([xy[0], xy[1], yaw]), np.diag([sigma2, sigma2, yaw_var])
+        return Alignment(self._samples[-1].stamp, pose, cov, ground_velocity=self._samples[-1].ground_velocity)

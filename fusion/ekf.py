@@ -86,6 +86,10 @@ class Ekf(Estimator):
         if velocity is not None:  # the last step's rate; as uncertain as the step says, within bounds
             self.x[V : W + 1] = velocity[0]
             self.P[V : W + 1, V : W + 1] = np.diag(np.clip(np.diag(velocity[1]), [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))
+        ground = alignment.start_velocity(velocity, self.params.init_velocity_sigma_mps)
+        if ground is not None:  # the receiver's velocity where the odometry did not see the motion
+            self.x[V : VL + 1] = ground[0]
+            self.P[V : VL + 1, V : VL + 1] = np.diag(np.clip(np.diag(ground[1]), 0.25, 9.0))
         clone = alignment.pose
         last_pose = self.odometry.last_pose
         if now is not None and last_pose is not None and self.odometry.last_stamp == self._ref_stamp:

@@ -31,6 +31,14 @@ class FixObservation:
     speed_mps: float = math.nan
     course_deg: float = math.nan
 
+    @property
+    def ground_velocity(self) -> np.ndarray | None:
+        """The receiver's velocity over ground in world ENU (east, north), m/s, from its speed and course; None without them."""
+        if not (math.isfinite(self.speed_mps) and math.isfinite(self.course_deg)):
+            return None
+        course = math.radians(self.course_deg)  # clockwise from north
+        return self.speed_mps * np.array([math.sin(course), math.cos(course)])
+
 
 def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[FixObservation | None, str]:
     """The fix as an observation, or None with the reason it cannot be used as a position."""

@@ -110,6 +110,15 @@ class EstimatorParams(BaseEstimatorParams):
         description="a receiver that reports no speed (GGA only) shows a vessel at rest when its kept fixes over this long "
         "all stay within init_baseline_m / 2 of their mean [20 s: a boat at 0.5 m/s or more leaves that circle]",
     )
+    init_velocity_sigma_mps: float = Field(
+        0.5,
+        gt=0,
+        description="per-axis error of the receiver's velocity over ground (RMC/VTG speed and course) as the filters take it "
+        "at start-up and re-lock, fused with the odometry's last step, which it outweighs only where the matcher left a "
+        "direction unobserved [0.5 m/s: u-blox NEO-M8's datasheet gives 0.05 m/s (50%) in open sky; the simulated "
+        "receiver's filtered velocity is off by 0.06-0.14 m/s median, 0.11-1.6 m/s p95 and up to 1.3 m/s in its first "
+        "seconds (rough_water, charles_river, quickstart, canal_multipath, seed 0), so 0.5 covers it but a quay's NLOS]",
+    )
     init_course_speed_mps: float = Field(
         1.0,
         gt=0,

@@ -111,7 +111,10 @@ class Pf(Estimator):
         self.poses = alignment.pose + self.rng.standard_normal((n, 3)) @ chol.T
         self.poses[:, 2] = wrap_angle(self.poses[:, 2])
         velocity = self.odometry.velocity()
-        mean, var = (np.zeros(3), np.array([1.0, 1.0, 0.01])) if velocity is None else (velocity[0], np.diag(velocity[1]))
+        mean, var = (np.zeros(3), np.array([1.0, 1.0, 0.01])) if velocity is None else (velocity[0].copy(), np.diag(velocity[1]).copy())
+        ground = alignment.start_velocity(velocity, self.params.init_velocity_sigma_mps)
+        if ground is not None:  # the receiver's velocity where the odometry did not see the motion
+            mean[:2], var[:2] = ground[0], np.diag(ground[1])
         sigma = np.sqrt(np.clip(var, [0.25, 0.25, 1e-4], [9.0, 9.0, 0.1]))  # as uncertain as the last step, within bounds
         self.vel = mean + self.rng.standard_normal((n, 3)) * sigma
         self.clones = self.poses.copy()

@@ -50,6 +50,7 @@ class StreamSpec:
     faults: list[Fault] = field(default_factory=list)
     failing_matcher: bool = False
     no_gps: bool = False
+    report_velocity: bool = False  # fixes carry the true speed and course over ground (RMC/VTG)
     seed: int = 0
 
 
@@ -131,6 +132,9 @@ def make_fix(spec: StreamSpec, t_grid: np.ndarray, poses: np.ndarray, t: float, 
                 err = err + np.asarray(f.offset) * math.exp(-(t - f.start) / f.tau)
     true_enu = np.array([antenna[0], antenna[1], 1.3])
     enu = np.r_[antenna + err, 1.3] if quality else np.full(3, np.nan)
+    ahead = pose_at(t_grid, poses, t + 0.01)
+    velocity = (ahead[:2] - pose[:2]) / 0.01  # base_link's, as the lever's share at these turn rates is under 1 cm/s
+    reported = spec.report_velocity and quality
     return GnssFix(
         stamp=t,
         lat=0.0,
@@ -143,6 +147,8 @@ def make_fix(spec: StreamSpec, t_grid: np.ndarray, poses: np.ndarray, t: float, 
         vdop=1.5 * spec.hdop,
         pdop=1.8 * spec.hdop,
         truth=FixTruth(enu=true_enu, error=np.r_[err, 0.0] if quality else np.full(3, np.nan)),
+        speed_mps=float(np.hypot(*velocity)) if reported else math.nan,
+        course_deg=float(np.degrees(np.arctan2(velocity[0], velocity[1])) % 360.0) if reported else math.nan,
     )
 
 

@@ -15,6 +15,7 @@ import pytest
 from typer.testing import CliRunner
 
 import scenarios
+from scenarios.batch.plan import Axis, SweepPlan
 from scenarios.cli import app
 from scenarios.pipeline import command, recording_cache
 from scenarios.pipeline.runner import RunResult
@@ -276,3 +277,25 @@ def test_kiss_icp_pipeline_as_a_command_matcher_scores_as_evo_does(tmp_path, mon
     evo = _evo_ape(result.out_dir / "groundtruth.tum", result.out_dir / n["external"]["output"])
     assert abs(n["ape"]["rmse"] - evo) < 1e-3
     assert np.isfinite(n["rpe_10m"]["mean"])
+
+
+def test_a_sweeps_objective_and_plots_take_a_command_components_metrics(runs, tmp_path):
+    """The fixture's runs with the fake odometry at step 1 (`bad`) and 2 (`other`) as the rows of a sweep over the step."""
+    from scenarios.batch import sweep as sweeping
+    from scenarios.batch import table
+
+    plan = SweepPlan(("open_river",), grid=(Axis.parse("matchers.odo.params.step=1,2"),), fixed=tuple(with_commands([fake("odo")])))
+    objective = "matchers.odo.coverage"
+    for metric in (objective, "matchers.odo.ape_aligned.rmse", "matchers.odo.external.wall_s"):
+        sweeping.check_metric(metric, plan.points())
+    with pytest.raises(ValueError, match=r"'matchers.odo.covered': no such metric.*e\.g\. matchers\.odo\.ape\.max"):
+        sweeping.check_metric("matchers.odo.covered", plan.points())
+    rows = [table.row(p, "ok", 1.0, name, runs[name].metrics) for p, name in zip(plan.points(), ("bad", "other"))]
+    assert [(r.params, r.median) for r in sweeping.rank(rows, objective, minimize=False)] == [
+        ({"matchers.odo.params.step": 1}, 1.0),
+        ({"matchers.odo.params.step": 2}, 0.5),
+    ]
+    result = sweeping.SweepResult(tmp_path, rows, 2, 0)
+    assert [p.name for p in sweeping.write_plots(result, plan, objective, [])] == ["matchers.odo.coverage--matchers.odo.params.step.png"]
+    default = {p.name for p in sweeping.write_plots(result, plan, None, [])}
+    assert default == {f"{m}--matchers.odo.params.step.png" for m in ("estimators.all.ape.p95", "matchers.bev.success", objective)}

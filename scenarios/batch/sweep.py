@@ -155,7 +155,9 @@ def write_plan(out_dir: Path, plan: SweepPlan) -> None:
 
 
 def metric_names(point: SweepPoint) -> set[str]:
-    """Every column a run of this point's scenario puts in the table (from an empty run's metrics)."""
+    """Every column a run of this point's scenario puts in the table (from an empty run's metrics and its command
+    components' nodes)."""
+    from scenarios.pipeline import external
     from scenarios.pipeline.runner import RUN_NUMBERS
     from scenarios.score import metrics, vessel_log
     from scenarios.score.record import Recorder
@@ -165,6 +167,8 @@ def metric_names(point: SweepPoint) -> set[str]:
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)
         tree = metrics.compute(record, [], dict.fromkeys(RUN_NUMBERS, 0.0), vessel_log.metrics(vessel_log.VesselLog(), 0.0, 0.1))
+        for section, spec in scenario.commands:
+            tree[section][spec.id] = external.template(section)
     return set(table.flatten(metrics.json_safe(tree))) | set(table.IDENTITY) - {"scenario", "scenario_hash", "status", "reason", "run_dir"}
 
 

@@ -30,11 +30,11 @@ class Line:
 
 
 def default_metrics(rows: list[dict]) -> list[list[str]]:
-    """The figures drawn when no metric is named: every estimator's APE p95; every matcher's success."""
+    """The figures drawn when no metric is named: every estimator's APE p95; every matcher's success; every command
+    (or scored-in) matcher's coverage, the share of scans it gave a pose, its success's counterpart."""
     names = [k for r in rows for k in r]
-    estimators = list(dict.fromkeys(k for k in names if re.fullmatch(r"estimators\.[^.]+\.ape\.p95", k)))
-    matchers = list(dict.fromkeys(k for k in names if re.fullmatch(r"matchers\.[^.]+\.success", k)))
-    return [group for group in (estimators, matchers) if group]
+    groups = [r"estimators\.[^.]+\.ape\.p95", r"matchers\.[^.]+\.success", r"matchers\.[^.]+\.coverage"]
+    return [group for pattern in groups if (group := list(dict.fromkeys(k for k in names if re.fullmatch(pattern, k))))]
 
 
 def lines(rows: list[dict], metrics: list[str], param: str) -> list[Line]:

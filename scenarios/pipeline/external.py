@@ -64,13 +64,7 @@ def component(run: rescore.FinishedRun, section: str, spec: CommandSpec, recordi
     argv[0] = command.executable(argv[0])
     logs = {s: run.path / FOLDER / f"{spec.id}.{s}.log" for s in ("stdout", "stderr")}
     finished = command.run(argv, workdir, spec.environment(values), spec.timeout_s, logs["stdout"], logs["stderr"])
-    external = {
-        **finished.measures(),
-        "recording": spec.recording,
-        "recording_cached": recording.hit,
-        "recording_s": recording.seconds,
-        "logs": [str(p.relative_to(run.path)) for p in logs.values()],
-    }
+    external = costs(finished, recording) | {"recording": spec.recording, "logs": [str(p.relative_to(run.path)) for p in logs.values()]}
     reason = ended_badly(finished, spec, logs["stderr"])
     if reason is None:
         try:
@@ -94,6 +88,23 @@ def component(run: rescore.FinishedRun, section: str, spec: CommandSpec, recordi
     if section == "estimators":
         rescore.rewrite_windows_csv(run.path / "windows.csv", run, spec.id, metrics.horizontal_error(placed, run.truth))
     return node
+
+
+def costs(finished: command.Finished, recording: Recording) -> dict:
+    """The numbers of a component's `external`: what its command and its recording cost."""
+    return finished.measures() | {"recording_cached": recording.hit, "recording_s": recording.seconds}
+
+
+def template(section: str) -> dict:
+    """A scored command component's metrics node, every number NaN: the metric names a sweep's --objective and --plot
+    accept for it before anything has run (scenarios.batch.sweep.metric_names)."""
+    empty, nan = np.empty((0, 4, 4)), float("nan")
+    if section == "estimators":
+        node = metrics.estimate_metrics(empty, empty, np.empty(0), [])
+    else:
+        node = metrics.odometry_metrics(empty, empty)
+    unmeasured = costs(command.Finished(0, False, nan, nan, nan), Recording(Path(), False, nan))
+    return node | {"coverage": nan, "failed": False, "external": unmeasured | {"poses": 0}}
 
 
 def ended_badly(finished: command.Finished, spec: CommandSpec, stderr: Path) -> str | None:

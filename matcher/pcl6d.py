@@ -30,8 +30,19 @@ class Pcl6dParams(MatcherParams, DegeneracyParams, FloorParams):
     voxel_m: float = Field(0.4, gt=0.0, description="voxel filter leaf size for ICP (default 0.4 m)")
     sor_neighbors: int = Field(16, ge=2, description="statistical outlier removal: neighbours (default 16)")
     sor_std_ratio: float = Field(2.5, gt=0.0, description="statistical outlier removal: std. dev. multiplier (default 2.5)")
-    normal_radius_m: float = Field(1.5, gt=0.0, description="normal estimation radius (default 1.5 m)")
-    normal_max_nn: int = Field(20, ge=3, description="normal estimation max neighbours (default 20)")
+    normal_radius_m: float = Field(
+        3.0,
+        gt=0.0,
+        description="normal estimation radius (default 3 m): wider than the HDL-32E's ring spacing at its 100 m range "
+        "(lasers 1.33 deg apart, user's manual: 100 m x tan 1.33 deg = 2.3 m), so that every normal is fitted to two rings, "
+        "not to one ring's line, whose least-spread direction (across the range noise) points up; see docs/models.md",
+    )
+    normal_max_nn: int = Field(
+        30,
+        ge=3,
+        description="normal estimation max neighbours (default 30): at 0.4 m voxels one ring gives about 15 points within "
+        "normal_radius_m, the next ring the rest",
+    )
     prealign: Literal["ransac", "fgr", "none"] = Field("ransac", description="global pre-alignment method (default ransac)")
     prealign_voxel_m: float = Field(1.0, gt=0.0, description="voxel size of the FPFH pre-alignment clouds (default 1 m)")
     fpfh_radius_m: float = Field(5.0, gt=0.0, description="FPFH feature radius (default 5 m)")

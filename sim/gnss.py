@@ -100,7 +100,8 @@ class GnssConfig(BaseModel):
         DEFAULT_PROFILE,
         description="Receiver class whose values are the defaults of the other fields (sim.gnss_profiles): 'sbas' a marine "
         "L1 receiver with SBAS corrections and carrier-smoothed code (Hemisphere V102 class: < 1.0 m 95% horizontal; "
-        "NovAtel SMART2 SBAS: 0.6 m RMS, 0.9 m 95%), 'consumer' a u-blox NEO-M8N (2.5 m CEP, GPS), 'rtk' a u-blox ZED-F9P "
+        "NovAtel SMART2 SBAS: 0.6 m RMS, 0.9 m 95%), 'sbas_gps' the same tracking GPS alone (the V102, the field study's "
+        "era), 'consumer' a u-blox NEO-M8N (2.5 m CEP, GPS), 'rtk' a u-blox ZED-F9P "
         "with a base station (0.01 m + 1 ppm CEP fixed, convergence < 10 s). A field written beside it wins.",
     )
     rate_hz: float = Field(5.0, ge=1.0, le=10.0, description="Output rate, Hz (1-10).")

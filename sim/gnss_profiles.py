@@ -11,6 +11,11 @@ figures it reproduces in open sky (tests/test_gnss_profiles.py measures them; be
   SBAS: docs.novatel.com/OEM7 SMART2 performance specifications); CEP50 = 95% / 2.079 for a circular normal error.
   SBAS broadcasts satellite clock/orbit corrections and an ionospheric grid, which remove most of the slowly
   varying range error; carrier smoothing (a Hatch filter) removes most of the white code noise.
+- `sbas_gps`: the same receiver class tracking GPS alone, as the Hemisphere V102 does (user guide: "GPS L1, C/A code")
+  and as a receiver of the field study's era (about 2016) did: Galileo's initial services began on 15 December 2016
+  (European Commission) and BeiDou's global service in 2020 (BDS-3, CSNO), so a 2016 marine L1 receiver saw GPS
+  (GLONASS at most). Its datasheet figures are sbas's, which are GPS figures. Only `riverbench study --setup field`
+  selects it (the field study's receiver); the library keeps sbas with four systems.
 - `consumer`: a single-frequency GPS module without corrections, u-blox NEO-M8N (data sheet UBX-15031086:
   horizontal 2.5 m CEP, GPS): the bench's historical receiver model (the fields' own defaults).
 - `rtk`: a multi-band RTK receiver with a base station's RTCM 3 corrections, u-blox ZED-F9P (data sheet
@@ -25,7 +30,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-ProfileName = Literal["sbas", "consumer", "rtk"]
+ProfileName = Literal["sbas", "sbas_gps", "consumer", "rtk"]
 DEFAULT_PROFILE: ProfileName = "sbas"
 
 R95_PER_CEP50 = math.sqrt(math.log(20.0) / math.log(2.0))
@@ -106,6 +111,24 @@ PROFILES: dict[str, Profile] = {
             "corrections": {"kind": "sbas", "interval_s": 6.0, "station_id": 133},
         },
         why=_SBAS_WHY,
+    ),
+    "sbas_gps": Profile(
+        receiver="marine L1 receiver with SBAS (WAAS) and carrier-smoothed code tracking GPS alone, Hemisphere V102 "
+        "(GPS L1 C/A), the field study's era (about 2016)",
+        cep50_m=0.9 / R95_PER_CEP50,
+        p95_m=0.9,
+        figures="as sbas (the V102's and the SMART2's figures are GPS figures)",
+        defaults={
+            "noise": {"white_zenith_m": 0.15, "correlated_zenith_m": 0.24},
+            "filter": {"fix_sigma_m": 0.4},
+            "corrections": {"kind": "sbas", "interval_s": 6.0, "station_id": 133},
+            "constellations": ("GPS",),
+        },
+        why={
+            **_SBAS_WHY,
+            "constellations": "GPS alone: the Hemisphere V102 tracks GPS L1 C/A (user guide, appendix B); in 2016 Galileo's "
+            "initial services had not begun (15 December 2016, European Commission) nor BeiDou's global service (2020)",
+        },
     ),
     "rtk": Profile(
         receiver="u-blox ZED-F9P multi-band RTK rover with a base station's RTCM 3 corrections",

@@ -87,7 +87,13 @@ def with_commands(matchers: list[str], estimators: list[str] = ()) -> list[str]:
     ]
 
 
-EXPECT = ["matchers.odo.ape.rmse < 0.001", "matchers.silent.ape_aligned.rmse < 1000", "estimators.gps_only.ape.p95 < 1000"]
+EXPECT = [
+    "matchers.odo.ape.rmse < 0.001",
+    "matchers.silent.ape_aligned.rmse < 1000",
+    "estimators.gps_only.ape.p95 < 1000",
+    "matchers.exits3.external.wall_s < 1000",
+    "estimators.gps_only.ape.p95 < matchers.tenth.ape.p95 + 1000",
+]
 
 
 def run(tmp: Path, name: str, assignments: list[str], expect: list[str] = ()) -> RunResult:
@@ -162,8 +168,12 @@ def test_a_bad_command_is_a_failed_component_with_its_reason(runs, cid, reason):
 
 def test_a_failed_command_fails_its_expectations_and_nothing_else(runs):
     outcomes = {o["expect"]: o["pass"] for o in runs["bad"].metrics["expectations"]}
-    assert outcomes == dict(zip(EXPECT, (True, False, True)))
+    assert outcomes == dict(zip(EXPECT, (True, False, True, False, False)))
     assert not runs["bad"].passed
+    reasons = [o["reason"] for o in runs["bad"].metrics["expectations"]]
+    assert reasons[1] == "matchers.silent failed: the command wrote no file matching output = 'out/poses_tum.txt' in its working folder"
+    assert reasons[3].startswith("matchers.exits3 failed: the command exited with code 3")  # its costs pass no check either
+    assert reasons[4].startswith("matchers.tenth failed: ") and "below min_coverage" in reasons[4]
 
 
 def test_the_ros2_examples_converter_reads_a_rosbag2_recording_back_exactly(runs):

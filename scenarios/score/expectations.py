@@ -103,11 +103,14 @@ def _check_path(text: str, path: str, ids: dict[str, set[str]] | None) -> None:
 
 
 def _lookup(metrics: dict, path: str) -> tuple[float, str]:
-    """The number at a dotted path, or NaN and why it is not there (missing, not a number, NaN)."""
+    """The number at a dotted path, or NaN and why it is not there (missing, not a number, NaN, or a command component
+    that failed: none of its numbers passes a check, not even the costs it left under `external`)."""
     node = metrics
     for i, key in enumerate(path.split(".")):
         if i == 1 and isinstance(node, dict) and key not in node and path.split(".")[0] in ("estimators", "matchers"):
             return math.nan, f"no {path.split('.')[0][:-1]} {key!r} in this run (nothing to measure)"
+        if i == 2 and isinstance(node, dict) and node.get("failed") is True and "reason" in node:
+            return math.nan, f"{'.'.join(path.split('.')[:2])} failed: {node['reason']}"
         if not isinstance(node, dict) or key not in node:
             where = ".".join(path.split(".")[:i]) or "metrics"
             options = ", ".join(sorted(node)) if isinstance(node, dict) else "not a table"

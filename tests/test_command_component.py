@@ -254,12 +254,17 @@ def test_an_interrupt_of_the_bench_ends_the_commands_whole_group(tmp_path):
 
 
 def _evo_ape(reference: Path, estimate: Path) -> float:
+    """evo_ape tum REFERENCE ESTIMATE -a --project_to_plane xy: the SE(3) fit, then the error in the plane (the bench's
+    APE is horizontal; without the projection evo adds the LiDAR's heave and the fit's tilt, 19 mm on quickstart)."""
     from evo.core import metrics, sync
+    from evo.core.trajectory import Plane
     from evo.tools import file_interface
 
     ref, est = file_interface.read_tum_trajectory_file(reference), file_interface.read_tum_trajectory_file(estimate)
     ref, est = sync.associate_trajectories(ref, est, max_diff=0.025)
     est.align(ref, correct_scale=False)
+    ref.project(Plane.XY)
+    est.project(Plane.XY)
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((ref, est))
     return float(ape.get_statistic(metrics.StatisticsType.rmse))
@@ -309,3 +314,20 @@ def test_a_sweeps_objective_and_plots_take_a_command_components_metrics(runs, tm
     assert [p.name for p in sweeping.write_plots(result, plan, objective, [])] == ["matchers.odo.coverage--matchers.odo.params.step.png"]
     default = {p.name for p in sweeping.write_plots(result, plan, None, [])}
     assert default == {f"{m}--matchers.odo.params.step.png" for m in ("estimators.all.ape.p95", "matchers.bev.success", objective)}
+
+
+def test_a_baseline_flags_a_crippled_command_as_regressed(runs):
+    """The fixture's fake odometry at step 1 (`bad`) as the baseline, at step 2 (`other`, a pose every second scan) now:
+    its coverage regresses and fails the comparison (suite --baseline's exit 1); its costs are wall-clock figures."""
+    from scenarios.score import baseline, regression
+
+    def measured(name: str) -> baseline.Baseline:
+        result = runs[name]
+        return baseline.from_runs({"open_river": [(0, "h", result.metrics, "")]}, fast=False, overrides=[], provenance={})
+
+    comparison = regression.compare(measured("bad"), measured("other"))
+    verdicts = {v.metric: v for v in comparison.verdicts}
+    assert [v.metric for v in comparison.regressions] == ["matchers.odo.coverage"] and comparison.failed
+    assert verdicts["matchers.odo.ape.rmse"].verdict == "unchanged" and verdicts["matchers.bev.ape.rmse"].identical
+    assert all(verdicts[f"matchers.odo.external.{k}"].family.wall_clock for k in ("wall_s", "cpu_s", "peak_rss_mb", "recording_s"))
+    assert verdicts["matchers.odo.external.recording_cached"].verdict == "changed"

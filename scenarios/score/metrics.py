@@ -46,9 +46,15 @@ class Family:
 
 
 FAMILIES: tuple[Family, ...] = (
-    Family("wall clock", ("run.wall_s", "matchers.*.ms.*"), "lower", rel_tol=0.5, wall_clock=True),
+    Family(
+        "wall clock",
+        ("run.wall_s", "matchers.*.ms.*", "*.external.wall_s", "*.external.cpu_s", "*.external.recording_s"),
+        "lower",
+        rel_tol=0.5,
+        wall_clock=True,
+    ),
     Family("speed", ("run.realtime_factor", "matchers.*.hz"), "higher", rel_tol=0.33, wall_clock=True),
-    Family("memory", ("run.peak_rss_mb",), "lower", rel_tol=0.25, wall_clock=True),
+    Family("memory", ("run.peak_rss_mb", "*.external.peak_rss_mb"), "lower", rel_tol=0.25, wall_clock=True),
     Family("component failures", ("estimators.*.failed", "matchers.*.failed"), "lower", any_seed=True),
     Family("collisions", ("vessel.collisions",), "lower", any_seed=True),
     Family("completion", ("vessel.completed",), "higher", any_seed=True),
@@ -70,6 +76,9 @@ FAMILIES: tuple[Family, ...] = (
             "vessel.collision_t",
             "vessel.min_clearance_t",
             "*.source.poses",
+            "*.external.poses",
+            "*.external.exit_code",
+            "*.external.recording_cached",
         ),
         "none",
     ),

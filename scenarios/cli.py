@@ -535,6 +535,11 @@ def study(
     seed: int = typer.Option(None, help="the scenario's seed (default charles_river's)"),
     stretch: str = typer.Option(None, help="START:END route stations in metres (default the whole route, BU Bridge to Charlestown Bridge)"),
     workers: int = typer.Option(2, min=1, help="processes (1: everything in this one)"),
+    setup: str = typer.Option(
+        "both",
+        help="bench (the library scenario as it is), field (the field study's receiver, GPS alone, and its Method 1, "
+        "pre-aligned on every pair) or both, side by side",
+    ),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
     """The field study's findings beside the bench's measurements on the charles_river route, each with a verdict:
@@ -543,6 +548,7 @@ def study(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from scenarios.study.plan import StudyPlan, parse_stretch
+    from scenarios.study.setups import parse_setup
     from scenarios.study.study import default_out_dir, run_study
 
     bar = Progress(
@@ -561,19 +567,21 @@ def study(
 
     with stoppable("study interrupted; nothing written"), user_errors():
         stretch_m = parse_stretch(stretch) if stretch is not None else None
+        setups = parse_setup(setup)
         target = out if out is not None else default_out_dir()
         try:
             with bar:
-                path, tree = run_study(target, seed=seed, stretch_m=stretch_m, plan=StudyPlan(workers=workers), progress=progress)
+                path, tree = run_study(target, seed=seed, stretch_m=stretch_m, plan=StudyPlan(workers=workers), progress=progress, setups=setups)
         except RuntimeError as exc:
             errors.print(f"[bold red]study failed:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(1) from None
     if not quiet:
         table = Table(title="the field study's findings on the bench")
-        for column in ("finding", "verdict", "the bench"):
+        names = list(tree["setups"])
+        for column in ("finding", *(f"verdict ({name})" for name in names), f"the bench ({names[0]})"):
             table.add_column(column)
         for key, f in tree["findings"].items():
-            table.add_row(f"{key}. {f['title']}", f["verdict"], f["headline"])
+            table.add_row(f"{key}. {f['title']}", *(f["setups"][name]["verdict"] for name in names), f["headline"])
         console.print(table)
     console.print(f"wrote {path / 'report.html'}", highlight=False)
 

@@ -57,6 +57,16 @@ def test_study_json_has_every_finding_with_checks_and_a_verdict(tiny):
     assert m["a"]["structures"]["harvard_bridge"]["passage_s"] > 0  # the stretch is under its deck
     assert set(m["e"]) == {"pcl6d", "bev3dof", "kiss_icp", "gicp"} and all(v["registrations"] > 0 for v in m["e"].values())
     assert m["h"]["scans"] == tree["plan"]["chain_scans"] > 5  # every third revolution of the stretch (9), chained
+    # both setups side by side: each finding's verdict and cause under each, the first setup's at the top level
+    assert list(tree["setups"]) == ["bench", "field"] and tree["setups"]["field"]["receiver"] == {"profile": "sbas_gps"}
+    for f in tree["findings"].values():
+        assert list(f["setups"]) == ["bench", "field"]
+        assert f["verdict"] == f["setups"]["bench"]["verdict"]
+        for node in f["setups"].values():
+            assert node["verdict"] == verdict([Check(**c) for c in node["checks"]]) and node["cause"].endswith(".")
+    field = tree["findings"]["e"]["setups"]["field"]["measured"]
+    assert set(field) == {"pcl6d", "bev3dof", "kiss_icp", "gicp"}  # the field's Method 1 reported as pcl6d
+    assert "pcl6d_field" not in json.dumps(tree["findings"]["f"]) and "pcl6d_field" not in (tiny[0] / "report.md").read_text()
 
 
 def test_the_verdict_rules_on_hand_made_numbers():
@@ -138,6 +148,7 @@ def test_pieces_compose_into_one_chain():
         (["--stretch", "abc"], "--stretch"),
         (["--stretch", "0:999999"], "stretch"),
         (["--seed", "-1"], "seed"),
+        (["--setup", "nope"], "--setup"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
@@ -207,3 +218,59 @@ def test_the_chains_heading_is_integrated_as_a_planar_filter_does_so_its_tilt_st
     gap[10:12] = np.nan  # failed scans: the step is taken across them
     h = planar_heading(gap)
     assert np.isnan(h[10:12]).all() and np.allclose(np.delete(h, [10, 11]), np.delete(np.radians(3.0 * k), [10, 11]))
+
+
+def test_the_setups_change_only_the_receiver_and_method1():
+    from scenarios.study.plan import study_scenario
+    from scenarios.study.setups import FIELD_METHOD1_ID, SETUPS, parse_setup
+
+    assert parse_setup("both") == ("bench", "field") and parse_setup("field") == ("field",)
+    bench = study_scenario()
+    field = study_scenario(receiver=SETUPS["field"].receiver, field_method1=SETUPS["field"].method1)
+    assert bench.gnss.constellations == ("GPS", "GLONASS", "GALILEO", "BEIDOU") and field.gnss.constellations == ("GPS",)
+    assert field.gnss.model_dump(exclude={"profile", "constellations"}) == bench.gnss.model_dump(exclude={"profile", "constellations"})
+    assert [m.id for m in field.matchers] == [m.id for m in bench.matchers] + [FIELD_METHOD1_ID]
+    method1 = field.matcher_spec(FIELD_METHOD1_ID)
+    assert method1.ref == "pcl6d" and method1.params["skip_prealign_max_dt_s"] == 0.0  # pre-aligned on every pair
+    assert {k: v for k, v in method1.params.items() if k != "skip_prealign_max_dt_s"} == {
+        k: v for k, v in field.matcher_spec("pcl6d").params.items() if k != "skip_prealign_max_dt_s"
+    }
+
+
+def test_open_water_leaves_out_the_epochs_a_reflection_reaches_and_the_filter_remembers():
+    import numpy as np
+
+    from scenarios.score.record import FixTable
+    from scenarios.study.gnss_findings import OPEN_WATER_AFTER_S, open_water
+    from scenarios.study.tasks import GnssSample
+
+    n, period = 200, 0.2
+    t = np.arange(n) * period
+    zeros = np.zeros((n, 3))
+    nothing = zeros[:, 0]
+    fixes = FixTable(t, np.full(n, 2), zeros, nothing, nothing, nothing, np.full(n, 8), np.ones(n), zeros, zeros, np.zeros(n, bool), {}, {})
+    reflected = np.zeros(n, int)
+    reflected[20:25] = 1  # 1.0 s of code multipath from t = 4.0 s
+    g = GnssSample(fixes, np.full(n, 8), np.arange(n) * 0.4, period, reflected)
+    assert open_water(g, [], []).all()  # the route's open water: reflections on direct signals kept
+    mask = open_water(g, [], [], reflections=False)
+    gone = (t >= 4.0) & (t < 5.0 + OPEN_WATER_AFTER_S)  # the span and the receiver filter's memory after it
+    assert np.array_equal(mask, ~gone)
+
+
+def test_finding_g_judges_shares_of_points_not_of_feature_matches():
+    g = by_key()["g"]
+    node = {"pcl6d": {"outlier_share": {"median": 0.05, "p90": 0.08, "n": 50}, "prealign_rejected_share": {"median": 0.6, "p90": 0.7, "n": 50}}}
+    checks = verdicts.checks_g(node, g)
+    assert [c.claim.split(":")[0] for c in checks] == ["pcl6d outlier_share"] and verdict(checks) == "agrees"
+
+
+def test_the_cause_of_finding_a_names_the_deck_a_fix_held_under():
+    from scenarios.study.causes import cause
+
+    held = {"blackout_s": 0.0, "lost_share_under": 0.0, "los_min_under": 6}
+    lost = {"blackout_s": 4.0, "lost_share_under": 0.8, "los_min_under": 2}
+    text = cause("a", "bench", "partly", {"structures": {"bu_bridge": held, "harvard_bridge": lost}})
+    assert "Under bu_bridge" in text and "fewest: bu_bridge 6" in text and "harvard_bridge 80%" in text
+    assert cause("a", "field", "agrees", {"structures": {"harvard_bridge": lost}}).startswith("Every deck cuts the fix (sbas_gps)")
+    assert cause("d", "bench", "unmeasured", {}) == "not enough data on this stretch to name the cause."

@@ -18,6 +18,8 @@ from scenarios.study.tasks import GnssSample
 STRUCTURE_MARGIN_S = 20.0
 """A window within this of the vessel's passage under a structure's deck is that structure's (the receiver coasts up to
 10 s, sim.gnss coast_limit_s, before it reports quality 0)."""
+DEAD_RECKONING = 6
+"""GGA quality of the receiver's coasting (NMEA 0183: 6 = estimated, dead reckoning)."""
 MIN_LOS = 4
 """Fewer satellites than this in direct line of sight: no position from direct signals alone (the truth's outage)."""
 OUTAGE_MIN_S = 1.0
@@ -26,6 +28,8 @@ OPEN_WATER_AWAY_M = 100.0
 """Open water: measured fixes at least this far along the route from every structure's deck ..."""
 OPEN_WATER_AFTER_S = 10.0
 """... and this long after any blackout, NLOS or re-acquisition window, with no reflected signal used."""
+ADDED_M = 0.5
+"""d: a fix the environment (blockage, reflections) moved by more than this from the receiver's open-sky fix."""
 
 
 def spans(t: np.ndarray, flag: np.ndarray, period_s: float) -> list[tuple[float, float]]:
@@ -42,8 +46,11 @@ def shadowed(structures: list[dict]) -> list[dict]:
     return sorted((s for s in structures if "shadow_start_m" in s and "shadow_end_m" in s), key=lambda s: s["shadow_start_m"])
 
 
-def open_water(g: GnssSample, windows: list[win.Window], structures: list[dict]) -> np.ndarray:
-    """Mask of the open-water fixes (see OPEN_WATER_AWAY_M and OPEN_WATER_AFTER_S)."""
+def open_water(g: GnssSample, windows: list[win.Window], structures: list[dict], reflections: bool = True) -> np.ndarray:
+    """Mask of the open-water fixes (see OPEN_WATER_AWAY_M and OPEN_WATER_AFTER_S). With `reflections` False, also
+    none within OPEN_WATER_AFTER_S after an epoch where a facade reflection reached a satellite used by its direct
+    signal (code multipath, the truth's GnssSample.reflected): the study's open water as opposed to its finding c's
+    'near walls', where multipath gives wrong fixes."""
     f = g.fixes
     keep = f.measured & ~f.nlos_used
     for s in structures:
@@ -51,13 +58,17 @@ def open_water(g: GnssSample, windows: list[win.Window], structures: list[dict])
         keep &= (g.station < lo - OPEN_WATER_AWAY_M) | (g.station > hi + OPEN_WATER_AWAY_M)
     for w in windows:
         keep &= ~((f.t >= w.start) & (f.t < w.end + OPEN_WATER_AFTER_S))
+    if not reflections and g.reflected is not None:
+        for a, b in spans(f.t, g.reflected > 0, g.period_s):
+            keep &= ~((f.t >= a) & (f.t < b + OPEN_WATER_AFTER_S))
     return keep
 
 
 def outages(g: GnssSample, windows: list[win.Window], structures: list[dict]) -> dict:
     """Finding a: per structure passed, its passage (s under the deck) and the outages around it, in seconds, by source:
     quality 0 (the receiver reports nothing), no measured fix (quality != 1, the run's blackout windows) and fewer than
-    MIN_LOS satellites in line of sight (the truth)."""
+    MIN_LOS satellites in line of sight (the truth); beside them the share of the epochs under the deck without a
+    measured fix and the fewest satellites in direct sight there (what holds a fix through the passage)."""
     f = g.fixes
     kinds = {
         "quality0_s": spans(f.t, f.quality == 0, g.period_s),
@@ -70,7 +81,13 @@ def outages(g: GnssSample, windows: list[win.Window], structures: list[dict]) ->
         if not under.any():
             continue
         t_in, t_out = float(f.t[under][0]), float(f.t[under][-1]) + g.period_s
-        node = {"type": s.get("type", ""), "passage_start": t_in, "passage_s": t_out - t_in}
+        node = {
+            "type": s.get("type", ""),
+            "passage_start": t_in,
+            "passage_s": t_out - t_in,
+            "lost_share_under": float(np.mean(~f.measured[under])),
+            "los_min_under": int(g.los[under].min()),
+        }
         for key, found in kinds.items():
             near = [(a, b) for a, b in found if b > t_in - STRUCTURE_MARGIN_S and a < t_out + STRUCTURE_MARGIN_S]
             node[key] = float(sum(b - a for a, b in near))
@@ -79,20 +96,31 @@ def outages(g: GnssSample, windows: list[win.Window], structures: list[dict]) ->
 
 
 def open_water_error(g: GnssSample, mask: np.ndarray) -> dict:
-    """Finding d: horizontal error of the open-water fixes (m) and their HDOP."""
-    err = g.fixes.horizontal_error[mask]
+    """Finding d: horizontal error of the open-water fixes (m) and their HDOP; beside it the same receiver's error with
+    nothing blocking or reflecting (the truth's open_sky_error) and what the environment added (its p95, the share of
+    fixes it moved by more than ADDED_M and the route stations they lie between)."""
+    f = g.fixes
+    err = f.horizontal_error[mask]
+    open_sky = np.hypot(f.open_sky_error[mask, 0], f.open_sky_error[mask, 1])
+    added = f.added_error[mask]
+    worst = added > ADDED_M
     return {
         "fixes": int(mask.sum()),
         "share_of_fixes": float(mask.mean()) if len(mask) else math.nan,
         "error": metrics.stats(err),
-        "hdop_p95": float(np.percentile(g.fixes.hdop[mask], 95)) if mask.any() else math.nan,
+        "hdop_p95": float(np.percentile(f.hdop[mask], 95)) if mask.any() else math.nan,
+        "open_sky_error": metrics.stats(open_sky),
+        "added_p95_m": float(np.percentile(added, 95)) if mask.any() else math.nan,
+        "added_share": float(worst.mean()) if mask.any() else math.nan,
+        "added_stations_m": [float(np.min(g.station[mask][worst])), float(np.max(g.station[mask][worst]))] if worst.any() else None,
     }
 
 
 def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_fixes: int) -> dict:
     """Finding b: for each blackout of at least OUTAGE_MIN_S, the mean and max error of the first `n_fixes` measured
     fixes after it, and how long after it the error first came back within open water's p95 (`settle_s`, NaN: not
-    before the next outage or the stretch's end); the run's re-acquisition windows beside."""
+    before the next outage or the stretch's end), how long the receiver dead-reckoned in it and the error it had reached
+    when it stopped; the run's re-acquisition windows beside."""
     f = g.fixes
     err = f.horizontal_error
     blackouts = [w for w in windows if w.kind == "blackout"]
@@ -105,6 +133,7 @@ def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_f
         if not len(after):
             continue
         first = err[after[:n_fixes]]
+        coasted = np.nonzero((f.t >= w.start) & (f.t < w.end) & (f.quality == DEAD_RECKONING))[0]
         back = after[err[after] <= open_p95] if math.isfinite(open_p95) else after[:0]
         rows.append(
             {
@@ -113,6 +142,8 @@ def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_f
                 "first_mean_m": float(first.mean()),
                 "first_max_m": float(first.max()),
                 "settle_s": float(f.t[back[0]] - w.end) if len(back) else math.nan,
+                "coasted_s": float(len(coasted) * g.period_s),
+                "coast_end_error_m": float(err[coasted[-1]]) if len(coasted) else math.nan,
             }
         )
     reacq = [w for w in windows if w.kind == "reacquisition"]
@@ -127,6 +158,15 @@ def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_f
         "reacquisition_windows": len(reacq),
         "reacquisition_s_median": float(np.median([w.duration for w in reacq])) if reacq else math.nan,
     }
+
+
+def between(stations_m: list[float] | None, decks: list[dict]) -> list[str]:
+    """The structures on either side of the route stations [lo, hi] (the last deck before lo, the first after hi)."""
+    if not stations_m:
+        return []
+    before = [s["name"] for s in decks if s["shadow_end_m"] <= stations_m[0]]
+    after = [s["name"] for s in decks if s["shadow_start_m"] >= stations_m[1]]
+    return [before[-1] if before else "the route's start", after[0] if after else "the route's end"]
 
 
 def roc_auc(statistic: np.ndarray, faulty: np.ndarray) -> float:
@@ -165,10 +205,14 @@ def hdop_vs_error(g: GnssSample, windows: list[win.Window], open_hdop_p95: float
 
 
 def measure(g: GnssSample, structures: list[dict], n_fixes: int) -> dict:
-    """Findings a-d from one receiver's fixes over the stretch."""
+    """Findings a-d from one receiver's fixes over the stretch. Finding d is judged on the open water no facade
+    reflection reaches (open_water with reflections=False); the figures with those fixes kept are beside it
+    (`with_reflections`), with where the reflections moved the fixes."""
     windows = win.find(g.fixes, [], g.period_s)
-    mask = open_water(g, windows, shadowed(structures))
-    d = open_water_error(g, mask)
+    decks = shadowed(structures)
+    d = open_water_error(g, open_water(g, windows, decks, reflections=False))
+    d["with_reflections"] = open_water_error(g, open_water(g, windows, decks))
+    d["with_reflections"]["between"] = between(d["with_reflections"]["added_stations_m"], decks)
     return {
         "a": outages(g, windows, structures),
         "b": after_outages(g, windows, d["error"]["p95"], n_fixes),

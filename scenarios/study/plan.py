@@ -10,6 +10,7 @@ import numpy as np
 
 from scenarios.spec import library
 from scenarios.spec.scenario import Scenario
+from scenarios.study.setups import FIELD_METHOD1_ID
 
 SCENARIO = "charles_river"
 """The library scenario the study measures (the field study's route, BU Bridge to Charlestown Bridge)."""
@@ -52,12 +53,23 @@ class StudyPlan:
         return asdict(self)
 
 
-def study_scenario(seed: int | None = None, stretch_m: tuple[float, float] | None = None) -> Scenario:
+def study_scenario(
+    seed: int | None = None,
+    stretch_m: tuple[float, float] | None = None,
+    receiver: dict | None = None,
+    field_method1: dict | None = None,
+) -> Scenario:
     """charles_river from the library with every matcher and no estimator (the study measures sensors and matchers);
-    its expectations, which judge estimators, are left out. stretch_m: (start, end) route stations, default the whole route."""
+    its expectations, which judge estimators, are left out. stretch_m: (start, end) route stations, default the whole route;
+    receiver: [gnss] fields written over the library's (a setup's receiver, scenarios.study.setups); field_method1: pcl6d
+    parameters of the field study's Method 1, added as the matcher setups.FIELD_METHOD1_ID."""
     data = library.read(SCENARIO)
     data = {k: v for k, v in data.items() if k not in ("expect", "fast", "matchers", "estimators")}
     data["matchers"] = [{"id": m, "kind": m} for m in MATCHERS]
+    if field_method1 is not None:
+        data["matchers"].append({"id": FIELD_METHOD1_ID, "kind": "pcl6d", "params": dict(field_method1)})
+    if receiver:
+        data["gnss"] = {**data.get("gnss", {}), **receiver}
     data["estimators"] = []
     if seed is not None:
         data["seed"] = seed

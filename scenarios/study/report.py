@@ -28,42 +28,67 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
             f"on {run.get('workers', '?')} processes; riverbench {prov.get('riverbench')} {prov.get('git_commit', '')[:10]}",
             "meta",
         ),
+        Heading(2, "Setups"),
+        *[Text(f"{name}: {setup['description']}.") for name, setup in tree.get("setups", {}).items()],
         Heading(2, "Verdicts"),
         Table(
-            ["finding", "the study", "the bench", "verdict"],
+            ["finding", "the study", "setup", "the bench", "verdict", "cause"],
             [
                 [
                     Cell(f"{k}. {f['title']}", css="text"),
                     Cell(f["claim"], css="text"),
-                    Cell(f["headline"], css="text"),
-                    Cell(f["verdict"], css=VERDICT_CSS[f["verdict"]]),
+                    Cell(name, css="text"),
+                    Cell(node["headline"], css="text"),
+                    Cell(node["verdict"], css=VERDICT_CSS[node["verdict"]]),
+                    Cell(node.get("cause", ""), css="text"),
                 ]
                 for k, f in tree["findings"].items()
+                for name, node in _by_setup(f).items()
             ],
             note=f"verdict: agrees when every check of the finding holds, disagrees when none does, partly otherwise ({', '.join(VERDICTS)}); "
-            "each rule is in scenarios/study/verdicts.py",
+            "each rule is in scenarios/study/verdicts.py, each cause's mechanism in scenarios/study/causes.py; "
+            + "; ".join(f"{name}: {n} of {len(tree['findings'])} agree" for name, n in agreeing(tree).items()),
         ),
     ]
     for k, f in tree["findings"].items():
+        setups = _by_setup(f)
         out += [
-            Heading(2, f"{k}. {f['title']}: {f['verdict']}"),
+            Heading(2, f"{k}. {f['title']}: " + ", ".join(f"{node['verdict']} ({name})" for name, node in setups.items())),
             Text(f"The study: {f['claim']}"),
-            Table(
-                ["check", "the study", "the bench", "holds"],
-                [
-                    [
-                        Cell(c["claim"], css="text"),
-                        Cell(c["study"], css="text"),
-                        Cell(c["measured"], css="text"),
-                        Cell(_holds(c["holds"]), css=_css(c["holds"])),
-                    ]
-                    for c in f["checks"]
-                ],
-            ),
         ]
+        for name, node in setups.items():
+            out += [
+                Text(f"{name}: {node.get('cause', '')}"),
+                Table(
+                    ["check", "the study", f"the bench ({name})", "holds"],
+                    [
+                        [
+                            Cell(c["claim"], css="text"),
+                            Cell(c["study"], css="text"),
+                            Cell(c["measured"], css="text"),
+                            Cell(_holds(c["holds"]), css=_css(c["holds"])),
+                        ]
+                        for c in node["checks"]
+                    ],
+                ),
+            ]
         if k in images:
             out.append(Image(images[k], plots.CAPTIONS[k]))
     return out
+
+
+def _by_setup(f: dict) -> dict:
+    """The finding's node per setup (a study.json without setups: its one node, as the bench's)."""
+    return f.get("setups") or {"bench": f}
+
+
+def agreeing(tree: dict) -> dict[str, int]:
+    """How many findings agree under each setup."""
+    counts: dict[str, int] = {}
+    for f in tree["findings"].values():
+        for name, node in _by_setup(f).items():
+            counts[name] = counts.get(name, 0) + (node["verdict"] == "agrees")
+    return counts
 
 
 def _holds(value: bool | None) -> str:

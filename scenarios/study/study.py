@@ -14,7 +14,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -26,9 +26,10 @@ from scenarios.pipeline.assembly import assemble
 from scenarios.pipeline.matcher_pool import COST_MS
 from scenarios.pipeline.stream import scan_times
 from scenarios.score.metrics import json_safe
-from scenarios.study import gnss_findings, matcher_findings, report
+from scenarios.study import causes, gnss_findings, matcher_findings, report
 from scenarios.study.findings import CITATION, FINDINGS
 from scenarios.study.plan import MATCHERS, SCENARIO, StudyPlan, burst_starts, chain_pieces, study_scenario
+from scenarios.study.setups import FIELD_METHOD1_ID, SETUP_NAMES, SETUPS
 from scenarios.study.tasks import GnssSample, Timed, run_task
 from scenarios.study.verdicts import RULES, headline, verdict
 
@@ -57,12 +58,19 @@ def run_study(
     stretch_m: tuple[float, float] | None = None,
     plan: StudyPlan | None = None,
     progress: Progress | None = None,
+    setups: tuple[str, ...] = SETUP_NAMES,
 ) -> tuple[Path, dict]:
-    """Measure every finding (stretch_m: route stations, default the whole route) and write the study directory
-    (default runs/study-<UTC time>/); returns it and the study.json tree. An out_dir that exists and is not empty is a
-    ValueError, as is a stretch off the route."""
+    """Measure every finding under each of `setups` (scenarios.study.setups: the bench's, the field study's; stretch_m:
+    route stations, default the whole route) and write the study directory (default runs/study-<UTC time>/); returns it
+    and the study.json tree. An out_dir that exists and is not empty is a ValueError, as is a stretch off the route or
+    an unknown setup."""
     plan = plan or StudyPlan()
-    scenario = study_scenario(seed, stretch_m)
+    unknown = [name for name in setups if name not in SETUPS]
+    if unknown or not setups:
+        raise ValueError(f"study setups {list(setups)}: give one or more of {', '.join(SETUP_NAMES)}")
+    field = SETUPS["field"].method1 if "field" in setups else None
+    scenario = study_scenario(seed, stretch_m, field_method1=field)
+    receivers = {name: study_scenario(seed, stretch_m, receiver=SETUPS[name].receiver) for name in setups}
     out = Path(out_dir) if out_dir is not None else default_out_dir()
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"output directory {out} exists and is not empty")
@@ -70,7 +78,7 @@ def run_study(
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        tree = _measure_into(tmp, scenario, stack, plan, progress)
+        tree = _measure_into(tmp, scenario, receivers, stack, plan, progress)
         os.chmod(tmp, 0o755)  # mkdtemp made it private; a study directory is for everyone to read
         if out.exists():
             out.rmdir()
@@ -110,52 +118,95 @@ def chain_matcher(rates: dict, plan: StudyPlan) -> str:
     return adequate[0] if adequate else max(by_cost, key=lambda m: np.nan_to_num(rates[m]["success"]))
 
 
-def _measure_into(tmp: Path, scenario, stack, plan: StudyPlan, progress: Progress | None) -> dict:
+def _measure_into(tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, progress: Progress | None) -> dict:
+    """Both rounds of jobs, every setup's findings and the study directory's files; the study.json tree."""
     wall_start = time.perf_counter()
     lidar = stack.lidar
+    setups = list(receivers)
     starts = burst_starts(stack.t_start, stack.t_end, lidar.revolution_s, plan)
     pcl6d = (np.arange(len(starts)) % plan.pcl6d_every) == 0
     chunks = [c for c in np.array_split(np.arange(len(starts)), 3 * plan.workers) if len(c)]
-    round1 = [("gnss", scenario)] + [("bursts", (scenario, starts[c].tolist(), pcl6d[c].tolist(), plan.burst_scans)) for c in chunks]
+    round1 = [("gnss", receivers[name]) for name in setups]
+    round1 += [("bursts", (scenario, starts[c].tolist(), pcl6d[c].tolist(), plan.burst_scans)) for c in chunks]
     n_scans = len(scan_times(lidar, stack.t_start, stack.t_end)[:: plan.chain_stride])
     pieces = chain_pieces(n_scans, plan.chain_segments)
     total = len(round1) + len(pieces) + 1
     costs: list[dict] = []
     first = _jobs(round1, plan.workers, total, progress, costs)
-    gnss, rows = first[0], [row for chunk in first[1:] for row in chunk]
+    gnss = dict(zip(setups, first[: len(setups)]))
+    rows = [row for chunk in first[len(setups) :] for row in chunk]
     structures = stack.world.params.get("structures", [])
-    measured = gnss_findings.measure(gnss, structures, plan.post_outage_fixes)
-    f = {x.key: x for x in FINDINGS}
-    measured["e"] = matcher_findings.rates(rows, list(MATCHERS))
-    measured["f"] = matcher_findings.success_curve(rows, list(MATCHERS), f["f"].figures["points_band"])
-    measured["g"] = matcher_findings.outliers(rows, list(MATCHERS))
-    mid = chain_matcher(measured["e"], plan)
+    measured = {name: _measure_setup(name, gnss[name], rows, structures, plan) for name in setups}
+    mid = chain_matcher(measured[setups[0]]["e"], plan)
     round2 = [("chain", (scenario, mid, a, b, plan.chain_stride)) for a, b in pieces] + [("compass", scenario)]
     round1_wall_s = time.perf_counter() - wall_start
     second = _jobs(round2, plan.workers, total, progress, costs)
     compass_t, compass_error = second[-1]
-    measured["h"] = matcher_findings.yaw_drift(mid, second[:-1], compass_t, compass_error)
+    h = matcher_findings.yaw_drift(mid, second[:-1], compass_t, compass_error)
+    by_setup = {}
+    for name in setups:
+        measured[name]["h"] = h  # the chain and the compass are the same under both setups
+        by_setup[name] = _judged(name, measured[name])
     findings = {}
     for x in FINDINGS:
-        checks = RULES[x.key](measured[x.key], x)
+        node = by_setup[setups[0]][x.key]
         findings[x.key] = {
             "title": x.title,
             "claim": x.claim,
             "study": x.figures,
-            "verdict": verdict(checks),
-            "headline": headline(x.key, measured[x.key]),
-            "checks": [c.as_dict() for c in checks],
-            "measured": measured[x.key],
+            **node,
+            "setups": {name: by_setup[name][x.key] for name in setups},
         }
     tree = {
         "provenance": provenance.collect(),
         "citation": CITATION,
         "scenario": {"name": SCENARIO, "seed": scenario.seed, "hash": scenario.hash, "t_start": stack.t_start, "t_end": stack.t_end},
         "plan": {**plan.as_dict(), "bursts": len(starts), "chain_scans": n_scans},
+        "setups": {name: asdict(SETUPS[name]) for name in setups},
         "findings": findings,
     }
     tree["run"] = {"measure_wall_s": time.perf_counter() - wall_start, "round1_wall_s": round1_wall_s, "workers": plan.workers, "jobs": costs}
     tree = json_safe(tree)
-    report.write(tmp, tree, Samples(gnss, rows, structures))
+    report.write(tmp, tree, Samples(gnss[setups[0]], _as_method1(rows, setups[0]), structures))
     (tmp / "study.json").write_text(json.dumps(tree, indent=2) + "\n")
     return tree
+
+
+def _as_method1(rows: list[dict], setup: str) -> list[dict]:
+    """The burst rows as the setup sees them: its Method 1's rows named pcl6d, the other setup's Method 1 left out."""
+    ours = FIELD_METHOD1_ID if setup == "field" else "pcl6d"
+    out = []
+    for row in rows:
+        if row["matcher"] in ("pcl6d", FIELD_METHOD1_ID):
+            if row["matcher"] != ours:
+                continue
+            row = {**row, "matcher": "pcl6d"}
+        out.append(row)
+    return out
+
+
+def _measure_setup(name: str, gnss: GnssSample, rows: list[dict], structures: list[dict], plan: StudyPlan) -> dict:
+    """Findings a-g measured under one setup: its receiver's fixes (a-d) and the burst rows with its Method 1 (e-g)."""
+    measured = gnss_findings.measure(gnss, structures, plan.post_outage_fixes)
+    mine = _as_method1(rows, name)
+    f = {x.key: x for x in FINDINGS}
+    measured["e"] = matcher_findings.rates(mine, list(MATCHERS))
+    measured["f"] = matcher_findings.success_curve(mine, list(MATCHERS), f["f"].figures["points_band"])
+    measured["g"] = matcher_findings.outliers(mine, list(MATCHERS))
+    return measured
+
+
+def _judged(setup: str, measured: dict) -> dict:
+    """Each finding's verdict, headline, cause, checks and measurements under one setup."""
+    out = {}
+    for x in FINDINGS:
+        checks = RULES[x.key](measured[x.key], x)
+        v = verdict(checks)
+        out[x.key] = {
+            "verdict": v,
+            "headline": headline(x.key, measured[x.key]),
+            "cause": causes.cause(x.key, setup, v, measured[x.key]),
+            "checks": [c.as_dict() for c in checks],
+            "measured": measured[x.key],
+        }
+    return out

@@ -30,12 +30,14 @@ prealign_rejected_share of its FPFH correspondences when it pre-aligned; gicp: i
 @dataclass
 class GnssSample:
     """Every receiver epoch of the stretch: the fixes as a run records them, the true count of satellites seen
-    directly (line of sight) and the vessel's route station at each epoch."""
+    directly (line of sight), the count of satellites used whose direct signal a facade reflection also reaches (the
+    truth: code multipath) and the vessel's route station at each epoch."""
 
     fixes: FixTable
     los: np.ndarray
     station: np.ndarray
     period_s: float
+    reflected: np.ndarray | None = None
 
 
 def gnss(scenario: Scenario) -> GnssSample:
@@ -43,14 +45,17 @@ def gnss(scenario: Scenario) -> GnssSample:
     stack = assemble(scenario)
     receiver, trajectory, world = stack.receiver, stack.trajectory, stack.vessel_run.world
     recorder = Recorder([], [], stack.trajectory.mount)
-    los = []
+    los, reflected = [], []
     times = receiver.epochs(stack.t_end, stack.t_start)
     for t in times:
         fix = receiver.fix(world, trajectory, float(t))
         recorder.fix(fix, {})
-        los.append(sum(s.los for s in fix.truth.sats) if fix.truth is not None else 0)
+        sats = fix.truth.sats if fix.truth is not None else ()
+        los.append(sum(s.los for s in sats))
+        reflected.append(sum(r.used and s.los and s.bias_m != 0.0 for r, s in zip(fix.sats, sats)))
     fixes = recorder.finish([]).fixes
-    return GnssSample(fixes, np.asarray(los, dtype=int), np.asarray(trajectory.station(np.asarray(times, dtype=float))), 1.0 / receiver.rate_hz)
+    station = np.asarray(trajectory.station(np.asarray(times, dtype=float)))
+    return GnssSample(fixes, np.asarray(los, dtype=int), station, 1.0 / receiver.rate_hz, np.asarray(reflected, dtype=int))
 
 
 def bursts(job: tuple[Scenario, list[float], list[bool], int]) -> list[dict]:

@@ -88,7 +88,7 @@ def test_the_verdict_rules_on_hand_made_numbers():
     assert verdict(verdicts.checks_h({**node, "drift_end_deg": 1.0}, h)) == "disagrees"
     e = by_key()["e"]
     rates = {
-        "pcl6d": {"hz": 5.0, "spearman_seconds_points": 0.6, "error_m_median": 0.02, "unresolved": 0.05},
+        "pcl6d": {"hz": 5.0, "spearman_cpu_seconds_points": 0.6, "error_m_median": 0.02, "unresolved": 0.05},
         "bev3dof": {"hz": 50.0, "error_m_median": 0.05, "unresolved": 0.20},
     }
     assert verdict(verdicts.checks_e(rates, e)) == "agrees"

@@ -96,10 +96,11 @@ def cause_e(setup: str, verdict: str, m: dict) -> str:
     if setup == "bench":
         rate = (
             f"pcl6d skips its FPFH pre-alignment between revolutions 0.1 s apart and runs ICP from the motion prior alone, "
-            f"so it runs at {_n(p.get('hz'))} Hz and its time hardly follows the points (Spearman {_n(p.get('spearman_seconds_points'), '.2f')})"
+            f"so it runs at {_n(p.get('hz'))} Hz and its time hardly follows the points (Spearman of its CPU time "
+            f"{_n(p.get('spearman_cpu_seconds_points'), '.2f')})"
         )
     else:
-        rho = p.get("spearman_seconds_points")
+        rho = p.get("spearman_cpu_seconds_points")
         rate = (
             f"with the FPFH pre-alignment on every pair, as the study ran it, Method 1 takes {_n(p.get('ms_median'), '.0f')} ms "
             f"({_n(p.get('hz'))} Hz)"

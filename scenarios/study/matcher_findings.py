@@ -27,7 +27,7 @@ def rates(rows: list[dict], mids: list[str]) -> dict:
     """Finding e, per matcher: registrations, Hz (1 / median wall time of the registered, not gated, ones; cpu_hz from
     the process's CPU time instead, steadier on a loaded machine), success and
     unresolved shares, median translation and yaw error of the ok matches against the exact relative motion, and the
-    Spearman correlation of the wall time with the points per scan."""
+    Spearman correlation of the wall time, and of the CPU time, with the points per scan."""
     out = {}
     for mid in mids:
         c = columns(rows, mid)
@@ -45,6 +45,7 @@ def rates(rows: list[dict], mids: list[str]) -> dict:
             "yaw_error_deg_median": float(np.median(c["yaw_error_deg"][ok])) if ok.any() else math.nan,
             "points_median": float(np.median(c["points"])) if len(c["points"]) else math.nan,
             "spearman_seconds_points": float(spearmanr(sec, pts).statistic) if len(sec) >= 3 and np.ptp(pts) > 0 else math.nan,
+            "spearman_cpu_seconds_points": float(spearmanr(cpu, pts).statistic) if len(cpu) >= 3 and np.ptp(pts) > 0 else math.nan,
         }
     return out
 

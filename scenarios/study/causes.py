@@ -16,7 +16,10 @@ def _n(value, fmt: str = ".1f") -> str:
 
 def _range(values: list[float], fmt: str = ".1f") -> str:
     finite = [v for v in values if v is not None and math.isfinite(v)]
-    return "n/a" if not finite else f"{min(finite):{fmt}}-{max(finite):{fmt}}"
+    if not finite:
+        return "n/a"
+    lo, hi = f"{min(finite):{fmt}}", f"{max(finite):{fmt}}"
+    return lo if lo == hi else f"{lo}-{hi}"
 
 
 def cause_a(setup: str, verdict: str, m: dict) -> str:
@@ -36,23 +39,28 @@ def cause_a(setup: str, verdict: str, m: dict) -> str:
 
 
 def cause_b(setup: str, verdict: str, m: dict) -> str:
-    """b: the wrong estimate is the receiver's coast; how fast the returning fixes replace it."""
+    """b: the wrong estimate is the receiver's coast and what re-acquisition gives; how fast the filter lets it go."""
     rows = m["outages"]
     if not rows:
         return "No outage of 1 s or more on the stretch."
     slow = [r for r in rows if math.isfinite(r["settle_s"]) and r["settle_s"] >= SMOOTHING_MIN_S]
-    text = (
-        f"The wrong estimate is the receiver's dead reckoning (GGA quality 6, constant velocity, sim.receiver_filter), "
-        f"{_range([r['coast_end_error_m'] for r in rows])} m off when it ends; the fixes that follow replace it within "
-        f"{_n(m['settle_s_median'])} s (median of {len(rows)} outages), since the filter's covariance grew over the coast "
-        f"and 5 Hz fixes weighted with the profile's 0.4 m allowance pull it back in a few epochs"
+    fast = [r for r in rows if r not in slow]
+    coast = (
+        f"the receiver's dead reckoning (GGA quality 6, constant velocity, sim.receiver_filter) ends "
+        f"{_range([r['coast_end_error_m'] for r in rows])} m off"
     )
-    if slow:
-        text += (
-            f"; only after {len(slow)} outage(s) re-acquired on 4-5 satellites does a wrong fix linger "
-            f"({_range([r['settle_s'] for r in slow])} s, first fixes up to {_range([r['first_max_m'] for r in slow])} m off)"
-        )
-    return text + "."
+    lingering = (
+        f"after {len(slow)} of {len(rows)} outages the first fixes, on {_range([r['first_sats'] for r in slow], '.0f')} "
+        f"satellites, are off by up to {_range([r['first_max_m'] for r in slow])} m (the worst of each) and the filter takes "
+        f"{_range([r['settle_s'] for r in slow])} s to bring the error within open water's p95 ({_n(m['open_water_p95_m'], '.2f')} m)"
+    )
+    quick = (
+        f"after {len(fast)} of {len(rows)} outages (coasts of {_range([r['coasted_s'] for r in fast])} s on the straight "
+        f"track) the fixes that follow replace the coast within {_range([r['settle_s'] for r in fast])} s: the filter's "
+        f"covariance grew over the coast and 5 Hz fixes weighted with the profile's 0.4 m allowance pull it back in a few epochs"
+    )
+    parts = [p for p, rows_ in ((lingering, slow), (quick, fast)) if rows_]
+    return f"The wrong estimate: {coast}; " + "; ".join(parts) + "."
 
 
 def cause_c(setup: str, verdict: str, m: dict) -> str:

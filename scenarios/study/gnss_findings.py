@@ -119,8 +119,8 @@ def open_water_error(g: GnssSample, mask: np.ndarray) -> dict:
 def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_fixes: int) -> dict:
     """Finding b: for each blackout of at least OUTAGE_MIN_S, the mean and max error of the first `n_fixes` measured
     fixes after it, and how long after it the error first came back within open water's p95 (`settle_s`, NaN: not
-    before the next outage or the stretch's end), how long the receiver dead-reckoned in it and the error it had reached
-    when it stopped; the run's re-acquisition windows beside."""
+    before the next outage or the stretch's end), the satellites the first fix used, how long the receiver
+    dead-reckoned in the outage and the error it had reached when it stopped; the run's re-acquisition windows beside."""
     f = g.fixes
     err = f.horizontal_error
     blackouts = [w for w in windows if w.kind == "blackout"]
@@ -142,6 +142,7 @@ def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_f
                 "first_mean_m": float(first.mean()),
                 "first_max_m": float(first.max()),
                 "settle_s": float(f.t[back[0]] - w.end) if len(back) else math.nan,
+                "first_sats": int(f.num_sats[after[0]]),
                 "coasted_s": float(len(coasted) * g.period_s),
                 "coast_end_error_m": float(err[coasted[-1]]) if len(coasted) else math.nan,
             }
@@ -206,8 +207,10 @@ def hdop_vs_error(g: GnssSample, windows: list[win.Window], open_hdop_p95: float
 
 def measure(g: GnssSample, structures: list[dict], n_fixes: int) -> dict:
     """Findings a-d from one receiver's fixes over the stretch. Finding d is judged on the open water no facade
-    reflection reaches (open_water with reflections=False); the figures with those fixes kept are beside it
-    (`with_reflections`), with where the reflections moved the fixes."""
+    reflection reaches (open_water with reflections=False), and b's 'wrong' is beyond that open water's p95; the
+    figures with those fixes kept are beside it (`with_reflections`), with where the reflections moved the fixes. c's
+    HDOP reference is the route's open water with them kept: a reflection on a direct signal changes the range, not
+    the geometry HDOP is computed from, so leaving those epochs out would only sample the geometry elsewhere."""
     windows = win.find(g.fixes, [], g.period_s)
     decks = shadowed(structures)
     d = open_water_error(g, open_water(g, windows, decks, reflections=False))
@@ -216,6 +219,6 @@ def measure(g: GnssSample, structures: list[dict], n_fixes: int) -> dict:
     return {
         "a": outages(g, windows, structures),
         "b": after_outages(g, windows, d["error"]["p95"], n_fixes),
-        "c": hdop_vs_error(g, windows, d["hdop_p95"]),
+        "c": hdop_vs_error(g, windows, d["with_reflections"]["hdop_p95"]),
         "d": d,
     }

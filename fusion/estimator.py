@@ -238,6 +238,25 @@ class Estimator:
         if not self.initialized and self.params.initial_pose is not None:
             self._initialise_from_params(stamp, self.params.initial_pose)
 
+    @property
+    def wants_scans(self) -> bool:
+        """Whether its monitor maps what the LiDAR sees, so add_scan should be fed each scan's points."""
+        return self.monitor.wants_scans
+
+    def add_scan(self, scan_stamp: float, points: np.ndarray) -> None:
+        """One scan's points (N, 3, lidar frame), after add_match of the same scan, for a monitor that maps what the
+        LiDAR sees; placed with the filter's pose at the waterline (a vessel floats: its base_link height is known
+        better than the receiver's, whose vertical error moves by metres beside walls)."""
+        if not self.monitor.wants_scans or not self.initialized or float(scan_stamp) != self.stamp:
+            return
+        base = np.asarray(points, dtype=float) @ self.mount[:3, :3].T + self.mount[:3, 3]
+        self.monitor.add_scan(self.stamp, self._level_pose(), base)
+
+    def _level_pose(self) -> np.ndarray:
+        """world<-base_link now with base_link at the waterline (z = 0)."""
+        x, y, yaw = self._pose3()
+        return pose_matrix(x, y, 0.0, yaw)
+
     def add_imu(self, samples: ImuSamples) -> None:
         """Use a batch of IMU samples in time order: from the first on, yaw follows the gyro (its yaw rate, levelled with
         the roll and pitch the accelerometer's mean over the batch shows) and a yaw-rate bias is estimated."""
@@ -463,6 +482,7 @@ class Estimator:
             odometry=self.odometry,
             correlation_s=self.params.gps_correlation_s,
             velocity=None if heading is None or body is None else rot2(heading[0]) @ body,
+            antenna=(self._level_pose() @ np.r_[self.antenna, 1.0])[:3] if self.initialized else None,
         )
 
     def _advance(self, stamp: float) -> None:

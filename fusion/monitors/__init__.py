@@ -1,4 +1,4 @@
-"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, combined, combined_cn0, none, and plugins."""
+"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, shadow, combined, combined_cn0, none, and plugins."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
 from fusion.monitors.hdop import HdopMonitor, HdopParams
 from fusion.monitors.nis import NisMonitor, NisParams
 from fusion.monitors.none import NoMonitor, NoneParams
+from fusion.monitors.shadow import ShadowMonitor, ShadowParams
 from riverbench import plugins
 from riverbench.errors import validation_message
 
@@ -25,6 +26,7 @@ _MONITORS: dict[str, tuple[Callable[..., Monitor], type[BaseModel]]] = {  # (cla
     "combined": (CombinedMonitor, CombinedParams),
     "combined_cn0": (CombinedMonitor, CombinedCn0Params),
     "none": (NoMonitor, NoneParams),
+    "shadow": (ShadowMonitor, ShadowParams),
 }
 GROUP = "riverbench.monitors"
 """The entry-point group in which installed packages register monitors."""

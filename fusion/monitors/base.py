@@ -29,6 +29,7 @@ class FixContext:
     odometry: OdometryTrack
     correlation_s: float = 0.0
     velocity: np.ndarray | None = None
+    antenna: np.ndarray | None = None
 
 
 def mahalanobis2(r: np.ndarray, cov: np.ndarray) -> float:
@@ -45,6 +46,8 @@ class Monitor:
     """A GPS integrity monitor. check() has no side effects; commit() records the final decision."""
 
     name = "monitor"
+    wants_scans = False
+    """Whether add_scan should be fed the host's scans (a monitor that maps what the LiDAR sees)."""
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         raise NotImplementedError
@@ -54,6 +57,10 @@ class Monitor:
 
     def reset(self) -> None:
         """Forget the history (the host re-locked onto GPS)."""
+
+    def add_scan(self, stamp: float, pose: np.ndarray, points: np.ndarray) -> None:
+        """One LiDAR scan's points (N, 3) in base_link, with the host's pose (4x4 world<-base_link) at its stamp; only
+        called when wants_scans."""
 
     def note_outage(self, stamp: float) -> None:
         """An epoch without a measured position (no fix, dead reckoning or a bad field)."""

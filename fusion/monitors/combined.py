@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from fusion.monitors.base import FixContext, Monitor
@@ -43,6 +44,7 @@ class CombinedMonitor(Monitor):
     def __init__(self, params: CombinedParams, members: list[Monitor]) -> None:
         self.params = params
         self.members = members
+        self.wants_scans = any(m.wants_scans for m in members)
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         verdicts = [m.check(obs, ctx) for m in self.members]
@@ -62,6 +64,11 @@ class CombinedMonitor(Monitor):
     def reset(self) -> None:
         for m in self.members:
             m.reset()
+
+    def add_scan(self, stamp: float, pose: np.ndarray, points: np.ndarray) -> None:
+        for m in self.members:
+            if m.wants_scans:
+                m.add_scan(stamp, pose, points)
 
     def note_outage(self, stamp: float) -> None:
         for m in self.members:

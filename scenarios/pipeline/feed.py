@@ -179,10 +179,18 @@ class Feed:
         for mid, why in errors.items():
             self.recorder.failure("matcher", mid, event.stamp, f"{self.refs[mid]}: {why}")
 
+        points: list[np.ndarray] = []  # the scan's xyz (lidar frame), made once for the estimators that map it
+
         def step(eid: str, est) -> tuple[np.ndarray, float]:
-            """Feed one estimator its matcher's result (none for gps_only) and read its pose and protection level."""
+            """Feed one estimator its matcher's result (none for gps_only), and the scan's points when its monitor maps
+            them, and read its pose and protection level."""
             if self.feeds[eid]:
                 est.add_match(event.stamp, results[self.feeds[eid]])
+            if getattr(est, "wants_scans", False):
+                if not points:
+                    p = event.scan.points
+                    points.append(np.column_stack([p["x"], p["y"], p["z"]]))
+                est.add_scan(event.stamp, points[0])
             return checked_pose(est.pose), checked_level(getattr(est, "protection_level", math.nan))
 
         stepped = self._each_estimator(step, event.stamp)

@@ -146,13 +146,6 @@ loop); the rest of the library runs with the slow tests (CI runs both), to keep 
 
 
 NO_LONGER_DISCRIMINATING = {
-    "rough_water": "the ekf's 10 m relative error (rpe_10m 0.339, seeds 0.329-0.363 at 0a419cd) is above the receiver's own "
-    "(gps_only 0.248, seed 0), and its yaw p95 bound (1.62, from seeds 0.67-1.52) sits above gps_only's 1.52: at start-up "
-    "(13.4 s) the ekf takes the odometry's velocity, which in the canal's first 200 m is the degenerate gicp's prior "
-    "(0.04 m/s against 2 m/s), and the consistency monitor, holding the filter's velocity to 0.3 m/s, refuses the next 4 s "
-    "of fixes while the ekf runs up to 7.2 m off, until the window's anchor ages out at 17.4 s and it jumps back; the speed "
-    "error should be the filter's own velocity "
-    "variance (9 m^2/s^2 at initialisation), which moves every ekf metric and needs a baseline refresh",
     "steer_harvard_bridge": "with the SBAS four-system receiver the Harvard Bridge outage is ~1.2 s (4 s GPS alone), and the "
     "autopilot steered on gps_only keeps 1.50 m cross-track (seed 0) inside the ekf-steered bound of 3.0 m (baseline "
     "median 1.65, 0.20-2.87): the scenario needs a longer blackout to tell a fused estimate from the receiver's",

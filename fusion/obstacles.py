@@ -58,6 +58,11 @@ class ObstacleMap:
         self._seen = np.full((self.n, self.n), -np.inf)
         self._origin: np.ndarray | None = None  # world (x, y) of cell [0, 0]'s corner
 
+    @property
+    def empty(self) -> bool:
+        """Nothing placed yet (no scan with a finite pose)."""
+        return self._origin is None
+
     def add(self, stamp: float, pose: np.ndarray, points: np.ndarray) -> None:
         """Place one scan's points (N, 3, base_link) in the world with pose (4x4 world<-base_link at the scan), leaving out
         the vessel itself (within min_range_m) and non-finite points."""

@@ -55,17 +55,15 @@ class ShadowMonitor(Monitor):
 
     def reset(self) -> None:
         self._map = ObstacleMap(self.params.map)
-        self._mapped = False
         self._recent: deque[tuple[float, str]] = deque()  # (stamp, satellites named) of fixes that used a blocked one
         self._pending: tuple[float, str] = (math.nan, "")  # the last checked fix's stamp and the blocked satellites it used
 
     def add_scan(self, stamp: float, pose: np.ndarray, points: np.ndarray) -> None:
         """One scan's points (N, 3, base_link) placed with the host's pose (4x4 world<-base_link) at its stamp."""
         self._map.add(stamp, pose, points)
-        self._mapped = self._mapped or bool(np.all(np.isfinite(pose)))
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
-        if not self._mapped or ctx.antenna is None:
+        if self._map.empty or ctx.antenna is None:
             return Verdict(True, math.nan, "unchecked: no LiDAR map or no position to look from")
         used = [s for s in obs.sats if s.used]
         az = np.array([s.az_deg for s in used], dtype=float)

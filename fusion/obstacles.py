@@ -69,8 +69,9 @@ class ObstacleMap:
         points = np.asarray(points, dtype=float)
         if not np.all(np.isfinite(pose)) or not len(points):
             return
-        keep = np.hypot(points[:, 0], points[:, 1]) >= self.params.min_range_m  # NaN compares False
-        points = points[keep & np.isfinite(points[:, 2])]
+        keep = np.all(np.isfinite(points), axis=1)
+        keep[keep] = np.hypot(points[keep, 0], points[keep, 1]) >= self.params.min_range_m
+        points = points[keep]
         self._centre_on(pose[:2, 3])
         assert self._origin is not None
         world = points @ pose[:3, :3].T + pose[:3, 3]

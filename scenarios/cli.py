@@ -540,15 +540,24 @@ def study(
         help="bench (the library scenario as it is), field (the field study's receiver, GPS alone, and its Method 1, "
         "pre-aligned on every pair) or both, side by side",
     ),
+    scenario_file: Path = typer.Option(
+        None,
+        "--scenario",
+        help='a scenario file whose command components (kind = "command" in [[matchers]] or [[estimators]]) are run on the '
+        "study's stretch and scored beside the built-ins in the findings they apply to (matchers: e, f, h; estimators: b, d)",
+    ),
+    findings_: str = typer.Option(None, "--findings", help="with --scenario: score the command components in these findings only, e.g. f,h"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
     """The field study's findings beside the bench's measurements on the charles_river route, each with a verdict:
     report.md, report.html, plots/ and study.json (exit 1 if the study fails part-way, 130/143 on Ctrl-C/SIGTERM:
-    nothing written)."""
+    nothing written). With --scenario FILE your own command components (any language: e.g. kiss_icp_pipeline on the
+    stretch's rosbag2 recording) are scored beside the built-ins, each with its own verdicts."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from scenarios.study.plan import StudyPlan, parse_stretch
-    from scenarios.study.setups import parse_setup
+    from scenarios.study.components import from_scenario, parse_findings
+    from scenarios.study.plan import MATCHERS, StudyPlan, parse_stretch
+    from scenarios.study.setups import FIELD_METHOD1_ID, parse_setup
     from scenarios.study.study import default_out_dir, run_study
 
     bar = Progress(
@@ -568,10 +577,23 @@ def study(
     with stoppable("study interrupted; nothing written"), user_errors():
         stretch_m = parse_stretch(stretch) if stretch is not None else None
         setups = parse_setup(setup)
+        keys = parse_findings(findings_) if findings_ is not None else None
+        if keys is not None and scenario_file is None:
+            raise ValueError("--findings: give --scenario FILE too (it says where your command components are scored)")
+        commands = from_scenario(scenario_file, (*MATCHERS, FIELD_METHOD1_ID), keys) if scenario_file is not None else None
         target = out if out is not None else default_out_dir()
         try:
             with bar:
-                path, tree = run_study(target, seed=seed, stretch_m=stretch_m, plan=StudyPlan(workers=workers), progress=progress, setups=setups)
+                path, tree = run_study(
+                    target,
+                    seed=seed,
+                    stretch_m=stretch_m,
+                    plan=StudyPlan(workers=workers),
+                    progress=progress,
+                    setups=setups,
+                    commands=commands,
+                    command_findings=keys,
+                )
         except RuntimeError as exc:
             errors.print(f"[bold red]study failed:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(1) from None
@@ -582,6 +604,10 @@ def study(
             table.add_column(column)
         for key, f in tree["findings"].items():
             table.add_row(f"{key}. {f['title']}", *(f["setups"][name]["verdict"] for name in names), f["headline"])
+            for cid, by_setup in f.get("components", {}).items():
+                first = next(iter(by_setup.values()))
+                row = (by_setup[name]["verdict"] if name in by_setup else "" for name in names)
+                table.add_row(f"   {cid} (command)", *row, first["headline"])
         console.print(table)
     console.print(f"wrote {path / 'report.html'}", highlight=False)
 

@@ -6,6 +6,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import sys
+import textwrap
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -24,17 +28,50 @@ TINY = "1700:1706"
 """Three seconds under the Harvard Bridge: a blackout, points in the study's band, a few bursts."""
 
 
+STACK = textwrap.dedent(
+    """
+    name = "my_stack"
+    world = "charles_river"
+
+    [[matchers]]  # the guide's worked example: KISS-ICP's own pipeline, pinned to one thread (same bytes every run)
+    id = "kiss"
+    kind = "command"
+    command = \"\"\"env 'kiss_icp_registration={{"max_num_threads": 1}}' 'kiss_icp_data={{"max_range": {max_range}}}' \
+    'kiss_icp_mapping={{"voxel_size": {voxel_size}}}' kiss_icp_pipeline {recording}\"\"\"
+    recording = "rosbag2"
+    output = "results/**/*_poses_tum.txt"
+    anchor = "se3"
+    params = { max_range = 100.0, voxel_size = 0.5 }
+
+    [[estimators]]  # the ROS 2 example's converter on the recording's own truth topic: an exact estimator
+    id = "bag_truth"
+    kind = "command"
+    command = "%s %s/ros2/odometry_to_tum.py {recording} /ground_truth/odom {out}/truth.tum"
+    recording = "rosbag2"
+    output = "out/truth.tum"
+    """
+) % (sys.executable, Path(__file__).resolve().parent.parent / "examples")
+"""A scenario file with a command matcher and a command estimator, for `riverbench study --scenario`."""
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    out = tmp_path_factory.mktemp("study") / "tiny"
-    result = runner.invoke(app, ["study", "--out", str(out), "--stretch", TINY, "--workers", "1", "--quiet"])
+    """The tiny study with the command components of STACK beside the built-ins (its own recording cache)."""
+    tmp = tmp_path_factory.mktemp("study")
+    out = tmp / "tiny"
+    (tmp / "stack.toml").write_text(STACK)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("RIVERBENCH_CACHE", str(tmp / "cache"))
+        patch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")  # kiss_icp_pipeline
+        args = ["study", "--out", str(out), "--stretch", TINY, "--workers", "1", "--quiet", "--scenario", str(tmp / "stack.toml")]
+        result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     return out, json.loads((out / "study.json").read_text())
 
 
 def test_the_tiny_study_writes_its_directory(tiny):
     out, tree = tiny
-    assert {p.name for p in out.iterdir()} == {"report.md", "report.html", "study.json", "plots"}
+    assert {p.name for p in out.iterdir()} == {"report.md", "report.html", "study.json", "plots", "components"}
     assert all(p.suffix == ".png" and p.read_bytes()[:4] == b"\x89PNG" for p in (out / "plots").iterdir())
     assert not [p for p in out.parent.iterdir() if p.name.startswith(".")]  # no temporary left beside it
     html = (out / "report.html").read_text()
@@ -274,3 +311,104 @@ def test_the_cause_of_finding_a_names_the_deck_a_fix_held_under():
     assert "Under bu_bridge" in text and "fewest: bu_bridge 6" in text and "harvard_bridge 80%" in text
     assert cause("a", "field", "agrees", {"structures": {"harvard_bridge": lost}}).startswith("Every deck cuts the fix (sbas_gps)")
     assert cause("d", "bench", "unmeasured", {}) == "not enough data on this stretch to name the cause."
+
+
+def test_command_components_are_scored_in_the_findings_they_apply_to(tiny):
+    """kiss_icp_pipeline (a command matcher) in e, f and h; an exact command estimator in b and d; none in a, c, g; each
+    with its own verdict under each setup, the built-ins' findings as without them."""
+    out, tree = tiny
+    assert {cid: c["findings"] for cid, c in tree["components"].items()} == {"kiss": ["e", "f", "h"], "bag_truth": ["b", "d"]}
+    for key, f in tree["findings"].items():
+        expected = {"e": {"kiss"}, "f": {"kiss"}, "h": {"kiss"}, "b": {"bag_truth"}, "d": {"bag_truth"}}.get(key, set())
+        assert set(f.get("components", {})) == expected, key
+        for by_setup in f.get("components", {}).values():
+            assert list(by_setup) == ["bench", "field"]
+            for node in by_setup.values():
+                assert node["verdict"] == verdict([Check(**c) for c in node["checks"]]) and node["checks"], key
+    assert set(tree["findings"]["e"]["measured"]) == {"pcl6d", "bev3dof", "kiss_icp", "gicp"}  # the built-ins' node, untouched
+    kiss = tree["components"]["kiss"]["runs"]["bench"]
+    assert kiss["failed"] is False and kiss["coverage"] == 1.0 and kiss["ape"]["rmse"] < 0.5
+    assert set(tree["components"]["kiss"]["runs"]) == {"bench"}  # a matcher runs once: the setups differ in the receiver
+    assert set(tree["components"]["bag_truth"]["runs"]) == {"bench", "field"}
+    assert tree["components"]["bag_truth"]["runs"]["field"]["ape"]["max"] == 0.0
+    e = tree["findings"]["e"]["components"]["kiss"]["bench"]["measured"]
+    scans = json.loads((out / "components" / "bench" / "metrics.json").read_text())["run"]["scans"]
+    assert e["registrations"] == scans - 1 and e["unresolved"] == 0.0 and e["error_m_median"] < 0.1 and e["hz"] > 0
+    f = tree["findings"]["f"]["components"]["kiss"]["bench"]["measured"]["matchers"]["kiss"]
+    assert f["band_count"] + f["below_count"] <= scans - 1 and sum(f["count"]) == scans - 1
+    h = tree["findings"]["h"]["components"]["kiss"]["bench"]["measured"]
+    assert h["matcher"] == "kiss" and h["scans"] == scans and abs(h["drift_end_deg"]) < 5
+    md = (out / "report.md").read_text()
+    assert "## Command components" in md and "| bench: kiss (command) |" in md and "| kiss | matcher | bench | e, f, h | ok |" in md
+    assert (out / "components" / "bench" / "commands" / "kiss.stderr.log").is_file()
+
+
+def test_an_exact_command_estimator_has_no_error_at_any_receiver_epoch(tiny):
+    """What findings b and d read of a command estimator: its error at each receiver epoch (the converter of the
+    recording's own truth topic: zero wherever a scan precedes the epoch within a revolution)."""
+    import scenarios
+    from scenarios.study import components, tasks
+
+    run_dir = tiny[0] / "components" / "bench"
+    scenario = scenarios.load(run_dir / "scenario.toml")
+    tree = json.loads((run_dir / "metrics.json").read_text())
+    component = components.Component("estimators", scenario.command_estimators[0])
+    scored = components.scored(run_dir, scenario, tree, component, {})
+    g = tasks.gnss(scenario)
+    mine = components.estimator_sample(scored, g, assemble_trajectory(scenario))
+    have = mine.fixes.quality == 1
+    assert have.mean() > 0.9 and mine.fixes.horizontal_error[have].max() < 1e-6
+
+
+def assemble_trajectory(scenario):
+    from scenarios.pipeline.assembly import assemble
+
+    return assemble(scenario).trajectory
+
+
+def test_kiss_icp_pipeline_pinned_to_one_thread_gives_the_same_bytes_when_crippled(tiny, tmp_path):
+    """A max_range that cripples KISS-ICP (10 m: few points, an ill-conditioned fit) makes its answer chaotic; with its
+    registration's TBB reduction on one thread (kiss_icp_registration's max_num_threads) two runs write the same bytes."""
+    import scenarios
+    from scenarios.pipeline import command, recording_cache
+
+    scenario = scenarios.load(tiny[0] / "components" / "bench" / "scenario.toml")
+    recording = recording_cache.get(scenario, "rosbag2", root=tiny[0].parent / "cache")
+    assert recording.hit
+    outputs = []
+    for i in range(2):
+        work = tmp_path / str(i)
+        work.mkdir()
+        env = {"kiss_icp_registration": '{"max_num_threads": 1}', "kiss_icp_data": '{"max_range": 10.0}', "kiss_icp_mapping": '{"voxel_size": 0.5}'}
+        argv = [str(Path(sys.executable).parent / "kiss_icp_pipeline"), str(recording.path)]
+        finished = command.run(argv, work, env, 120.0, work / "o.log", work / "e.log")
+        assert finished.exit_code == 0, (work / "e.log").read_text()[-500:]
+        (found,) = sorted(work.glob("results/latest/*_poses_tum.txt"))
+        outputs.append(found.read_bytes())
+    assert outputs[0] == outputs[1] and len(outputs[0].splitlines()) > 20
+
+
+@pytest.mark.parametrize(
+    "stack, args, needle",
+    [
+        (STACK, ["--findings", "g"], "--findings g: finding g cannot use a command component: its outlier shares are diagnostics"),
+        (STACK, ["--findings", "a,e"], "--findings a: finding a cannot use a command component"),
+        (STACK, ["--findings", "e,z"], "unknown finding 'z'"),
+        (STACK.replace("kiss_icp_pipeline", "no_such_tool_riverbench"), [], "matchers.kiss.command: no_such_tool_riverbench: not found on PATH"),
+        (STACK.replace("/ros2/odometry_to_tum.py", "/ros2/none.py").replace(sys.executable, "/no/such/python"), [], "no such executable"),
+        (STACK.replace('recording = "rosbag2"\noutput = "results', 'recording = "nmea"\noutput = "results'), [], "holds no scans"),
+        ('name = "x"\nworld = "charles_river"\n', [], "no command component"),
+        (STACK.replace('id = "kiss"', 'id = "gicp"'), [], "matchers.gicp: the study has a matcher of that id"),
+        (None, ["--findings", "e"], "--findings: give --scenario FILE too"),
+    ],
+)
+def test_bad_command_input_is_one_line_and_exit_2_before_anything_runs(tmp_path, stack, args, needle):
+    if stack is not None:
+        (tmp_path / "stack.toml").write_text(stack)
+        args = [*args, "--scenario", str(tmp_path / "stack.toml")]
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["study", "--out", str(out), "--workers", "1", "--quiet", *args])
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and needle in lines[0] and "Traceback" not in result.output, result.output
+    assert not out.exists()

@@ -59,6 +59,17 @@ def executable(word: str) -> str:
     return found
 
 
+def wrapped(words: list[str]) -> int | None:
+    """Where in a command line starting with `env NAME=VALUE ...` the program it runs is (the first word after env's
+    assignments and options), or None when it does not start with env: that word is checked and resolved as the first."""
+    if not words or os.path.basename(words[0]) != "env":
+        return None
+    i = 1
+    while i < len(words) and (words[i].startswith("-") or "=" in words[i]):
+        i += 1
+    return i if i < len(words) else None
+
+
 def run(argv: list[str], workdir: Path, env: dict[str, str], timeout_s: float, stdout: Path, stderr: Path) -> Finished:
     """Run `argv` in `workdir` with the bench's environment and `env`, its output streams into `stdout` and `stderr`."""
     with open(stdout, "wb") as out, open(stderr, "wb") as err:

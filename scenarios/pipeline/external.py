@@ -29,10 +29,14 @@ FOLDER = "commands"
 
 
 def check(scenario: Scenario) -> None:
-    """Every command's executable exists (a name on PATH or a path): else one line naming it, before anything runs."""
+    """Every command's executable exists (a name on PATH or a path; with `env NAME=VALUE ... program`, the program too):
+    else one line naming it, before anything runs."""
     for section, spec in scenario.commands:
+        words = spec.argv({k: k for k in FILLED})
         try:
-            command.executable(spec.argv({k: k for k in FILLED})[0])
+            command.executable(words[0])
+            if (i := command.wrapped(words)) is not None:
+                command.executable(words[i])
         except ValueError as exc:
             raise ValueError(f"{section}.{spec.id}.{exc}") from None
 
@@ -62,6 +66,8 @@ def component(run: rescore.FinishedRun, section: str, spec: CommandSpec, recordi
     values = {"recording": str(recording.path), "out": str(workdir / "out"), "workdir": str(workdir)}
     argv = spec.argv(values)
     argv[0] = command.executable(argv[0])
+    if (i := command.wrapped(argv)) is not None:  # env NAME=VALUE ... program: the program as the bench found it
+        argv[i] = command.executable(argv[i])
     logs = {s: run.path / FOLDER / f"{spec.id}.{s}.log" for s in ("stdout", "stderr")}
     finished = command.run(argv, workdir, spec.environment(values), spec.timeout_s, logs["stdout"], logs["stderr"])
     external = costs(finished, recording) | {"recording": spec.recording, "logs": [str(p.relative_to(run.path)) for p in logs.values()]}

@@ -78,6 +78,16 @@ def study_scenario(
     return library.validate(data, f"{SCENARIO}.toml")
 
 
+def component_scenario(seed: int | None, stretch_m: tuple[float, float] | None, receiver: dict, commands: list) -> Scenario:
+    """The study's scenario (its stretch, seed and a setup's [gnss] fields) with the command components `commands`
+    ((section, scenarios.spec.command.CommandSpec) pairs) as its only matchers and estimators: what
+    scenarios.study.components runs them in."""
+    data = study_scenario(seed, stretch_m, receiver=receiver).resolved()
+    data["matchers"] = [spec.model_dump(exclude_none=True) for section, spec in commands if section == "matchers"]
+    data["estimators"] = [spec.model_dump(exclude_none=True) for section, spec in commands if section == "estimators"]
+    return library.validate(data, f"{SCENARIO}.toml")
+
+
 def parse_stretch(text: str) -> tuple[float, float]:
     """'START:END' route stations in metres (ValueError naming the problem)."""
     parts = text.split(":")

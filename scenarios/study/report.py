@@ -43,7 +43,7 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
                     Cell(node.get("cause", ""), css="text"),
                 ]
                 for k, f in tree["findings"].items()
-                for name, node in _by_setup(f).items()
+                for name, node in _rows(f)
             ],
             note=f"verdict: agrees when every check of the finding holds, disagrees when none does, partly otherwise ({', '.join(VERDICTS)}); "
             "each rule is in scenarios/study/verdicts.py, each cause's mechanism in scenarios/study/causes.py; "
@@ -72,9 +72,87 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
                     ],
                 ),
             ]
+        for cid, by_setup in f.get("components", {}).items():
+            for name, node in by_setup.items():
+                out += [
+                    Text(f"{cid} (your command {tree['components'][cid]['section'][:-1]}), {name}: {node['headline']}"),
+                    Table(
+                        ["check", "the study", f"{cid} ({name})", "holds"],
+                        [
+                            [
+                                Cell(c["claim"], css="text"),
+                                Cell(c["study"], css="text"),
+                                Cell(c["measured"], css="text"),
+                                Cell(_holds(c["holds"]), css=_css(c["holds"])),
+                            ]
+                            for c in node["checks"]
+                        ],
+                    ),
+                ]
         if k in images:
             out.append(Image(images[k], plots.CAPTIONS[k]))
+    if tree.get("components"):
+        out += command_blocks(tree["components"])
     return out
+
+
+def _rows(f: dict) -> list[tuple[str, dict]]:
+    """The verdict table's rows of one finding: each setup's, then each command component's under each setup."""
+    rows = list(_by_setup(f).items())
+    for cid, by_setup in f.get("components", {}).items():
+        rows += [(f"{name}: {cid} (command)", node) for name, node in by_setup.items()]
+    return rows
+
+
+def command_blocks(commands: dict) -> list:
+    """The command components: what ran, where its run directory is, what it cost and how it scored as in a run."""
+    rows = []
+    for cid, c in commands.items():
+        for name, r in c["runs"].items():
+            ext = r.get("external", {})
+            ape = r.get("ape", {}).get("rmse")
+            rows.append(
+                [
+                    Cell(cid, css="text"),
+                    Cell(c["section"][:-1], css="text"),
+                    Cell(name, css="text"),
+                    Cell(", ".join(c["findings"]) or "none", css="text"),
+                    Cell(f"failed: {r['reason']}" if r["failed"] else "ok", css="fail" if r["failed"] else "pass"),
+                    Cell("" if r["failed"] else f"{r.get('coverage', float('nan')):.3f}"),
+                    Cell("" if ape is None else f"{ape:.3f}"),
+                    Cell(f"{ext.get('wall_s', float('nan')):.1f}"),
+                    Cell(f"{ext.get('cpu_s', float('nan')):.1f}"),
+                    Cell(f"{ext.get('peak_rss_mb', float('nan')):.0f}"),
+                    Cell(f"{ext.get('recording_s', float('nan')):.1f}" + (" (cached)" if ext.get("recording_cached") else "")),
+                    Cell(r["run_dir"], css="text"),
+                ]
+            )
+    return [
+        Heading(2, "Command components"),
+        Text(
+            'Your components of kind = "command", each run once on a recording of the stretch (matchers under the first setup, '
+            "estimators under each) and scored as in `riverbench run`; their run directories hold metrics.json, the trajectories, "
+            "the command's logs under commands/. Each finding above judges them apart from the built-ins (scenarios/study/components.py)."
+        ),
+        Table(
+            [
+                "id",
+                "kind",
+                "setup",
+                "findings",
+                "outcome",
+                "coverage",
+                "APE rmse (m)",
+                "wall (s)",
+                "CPU (s)",
+                "peak MB",
+                "recording (s)",
+                "run directory",
+            ],
+            rows,
+            note="APE rmse: a matcher's after its declared anchor, an estimator's in the map; wall, CPU and memory: the command's own",
+        ),
+    ]
 
 
 def _by_setup(f: dict) -> dict:

@@ -22,13 +22,15 @@ import numpy as np
 
 from riverbench import provenance
 from scenarios.batch.workers import run_jobs
+from scenarios.pipeline import external
 from scenarios.pipeline.assembly import assemble
 from scenarios.pipeline.matcher_pool import COST_MS
 from scenarios.pipeline.stream import scan_times
 from scenarios.score.metrics import json_safe
-from scenarios.study import causes, gnss_findings, matcher_findings, report
+from scenarios.study import causes, components, gnss_findings, matcher_findings, report
+from scenarios.study.components import Component
 from scenarios.study.findings import CITATION, FINDINGS
-from scenarios.study.plan import MATCHERS, SCENARIO, StudyPlan, burst_starts, chain_pieces, study_scenario
+from scenarios.study.plan import MATCHERS, SCENARIO, StudyPlan, burst_starts, chain_pieces, component_scenario, study_scenario
 from scenarios.study.setups import FIELD_METHOD1_ID, SETUP_NAMES, SETUPS
 from scenarios.study.tasks import GnssSample, Timed, run_task
 from scenarios.study.verdicts import RULES, headline, verdict
@@ -59,11 +61,14 @@ def run_study(
     plan: StudyPlan | None = None,
     progress: Progress | None = None,
     setups: tuple[str, ...] = SETUP_NAMES,
+    commands: list[Component] | None = None,
+    command_findings: tuple[str, ...] | None = None,
 ) -> tuple[Path, dict]:
     """Measure every finding under each of `setups` (scenarios.study.setups: the bench's, the field study's; stretch_m:
     route stations, default the whole route) and write the study directory (default runs/study-<UTC time>/); returns it
-    and the study.json tree. An out_dir that exists and is not empty is a ValueError, as is a stretch off the route or
-    an unknown setup."""
+    and the study.json tree. `commands`: command components (scenarios.study.components.from_scenario) scored in the
+    findings they apply to (`command_findings`: only these), beside the built-ins. An out_dir that exists and is not
+    empty is a ValueError, as is a stretch off the route, an unknown setup or a command whose executable is missing."""
     plan = plan or StudyPlan()
     unknown = [name for name in setups if name not in SETUPS]
     if unknown or not setups:
@@ -74,11 +79,14 @@ def run_study(
     out = Path(out_dir) if out_dir is not None else default_out_dir()
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"output directory {out} exists and is not empty")
+    runs = component_runs(commands or [], setups, seed, stretch_m)
+    for _, run_scenario in runs.values():
+        external.check(run_scenario)  # a missing executable: one line before any work
     stack = assemble(scenario)  # checks the stretch before any work
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        tree = _measure_into(tmp, scenario, receivers, stack, plan, progress)
+        tree = _measure_into(tmp, scenario, receivers, stack, plan, progress, runs, command_findings)
         os.chmod(tmp, 0o755)  # mkdtemp made it private; a study directory is for everyone to read
         if out.exists():
             out.rmdir()
@@ -118,8 +126,22 @@ def chain_matcher(rates: dict, plan: StudyPlan) -> str:
     return adequate[0] if adequate else max(by_cost, key=lambda m: np.nan_to_num(rates[m]["success"]))
 
 
-def _measure_into(tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, progress: Progress | None) -> dict:
-    """Both rounds of jobs, every setup's findings and the study directory's files; the study.json tree."""
+def component_runs(commands: list[Component], setups: tuple[str, ...], seed: int | None, stretch_m) -> dict[str, tuple[list[Component], object]]:
+    """The runs of the command components, by setup: the matchers under the first setup only (the setups differ in the
+    receiver alone), the estimators under each; (their components, the scenario that runs them)."""
+    out = {}
+    for i, name in enumerate(setups):
+        mine = [c for c in commands if c.section == "estimators" or i == 0]
+        if mine:
+            out[name] = (mine, component_scenario(seed, stretch_m, SETUPS[name].receiver, [(c.section, c.spec) for c in mine]))
+    return out
+
+
+def _measure_into(
+    tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, progress: Progress | None, runs: dict, keys: tuple[str, ...] | None
+) -> dict:
+    """Both rounds of jobs, the command components' runs, every setup's findings and the study directory's files; the
+    study.json tree."""
     wall_start = time.perf_counter()
     lidar = stack.lidar
     setups = list(receivers)
@@ -130,7 +152,7 @@ def _measure_into(tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, 
     round1 += [("bursts", (scenario, starts[c].tolist(), pcl6d[c].tolist(), plan.burst_scans)) for c in chunks]
     n_scans = len(scan_times(lidar, stack.t_start, stack.t_end)[:: plan.chain_stride])
     pieces = chain_pieces(n_scans, plan.chain_segments)
-    total = len(round1) + len(pieces) + 1
+    total = len(round1) + len(pieces) + 1 + len(runs)
     costs: list[dict] = []
     first = _jobs(round1, plan.workers, total, progress, costs)
     gnss = dict(zip(setups, first[: len(setups)]))
@@ -147,6 +169,7 @@ def _measure_into(tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, 
     for name in setups:
         measured[name]["h"] = h  # the chain and the compass are the same under both setups
         by_setup[name] = _judged(name, measured[name])
+    commands = _commands(tmp, runs, measured, gnss, stack, structures, plan, keys, (compass_t, compass_error), progress, total, costs)
     findings = {}
     for x in FINDINGS:
         node = by_setup[setups[0]][x.key]
@@ -157,6 +180,9 @@ def _measure_into(tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, 
             **node,
             "setups": {name: by_setup[name][x.key] for name in setups},
         }
+        mine = {cid: node["findings"][x.key] for cid, node in commands.items() if x.key in node["findings"]}
+        if mine:
+            findings[x.key]["components"] = mine
     tree = {
         "provenance": provenance.collect(),
         "citation": CITATION,
@@ -165,11 +191,62 @@ def _measure_into(tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, 
         "setups": {name: asdict(SETUPS[name]) for name in setups},
         "findings": findings,
     }
+    if commands:
+        tree["components"] = {
+            cid: {k: v for k, v in node.items() if k != "findings"} | {"findings": list(node["findings"])} for cid, node in commands.items()
+        }
     tree["run"] = {"measure_wall_s": time.perf_counter() - wall_start, "round1_wall_s": round1_wall_s, "workers": plan.workers, "jobs": costs}
     tree = json_safe(tree)
     report.write(tmp, tree, Samples(gnss[setups[0]], _as_method1(rows, setups[0]), structures))
     (tmp / "study.json").write_text(json.dumps(tree, indent=2) + "\n")
     return tree
+
+
+def _commands(tmp: Path, runs: dict, measured: dict, gnss: dict, stack, structures, plan, keys, compass, progress, total, costs) -> dict:
+    """Run the command components (components/<setup>/ of the study directory, one run per setup) and judge each in the
+    findings it applies to: {id: {section, command, recording, runs: {setup: summary}, findings: {key: {setup: node}}}}."""
+    by_key = {x.key: x for x in FINDINGS}
+    band = by_key["f"].figures["points_band"]
+    out: dict = {}
+    for name, (mine, run_scenario) in runs.items():
+        counter = components.PointCounter()
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = run_scenario_dir(run_scenario, tmp / "components" / name, plan.workers, counter)
+        costs.append({"kind": "components", "wall_s": time.perf_counter() - wall, "cpu_s": time.process_time() - cpu})
+        if progress is not None:
+            progress(len(costs), total, "components")
+        for c in mine:
+            wanted = tuple(k for k in c.findings if keys is None or k in keys)
+            s = components.scored(result.out_dir, run_scenario, result.metrics, c, counter.points)
+            node = out.setdefault(
+                c.id,
+                {"section": c.section, "command": c.spec.command, "recording": c.spec.recording, "runs": {}, "findings": {k: {} for k in wanted}},
+            )
+            node["runs"][name] = components.summary(s) | {"run_dir": f"components/{name}"}
+            if c.section == "matchers":
+                m = components.measure_matcher(s, c.id, wanted, stack.trajectory, band, compass)
+                judged_in = {n: m for n in measured}  # the scans are the same under every setup; e's Method 1 is each setup's
+            else:
+                judged_in = {name: components.measure_estimator(s, gnss[name], wanted, stack.trajectory, structures, plan.post_outage_fixes)}
+            for setup, m in judged_in.items():
+                for k in wanted:
+                    if s.node.get("failed"):
+                        node["findings"][k][setup] = {
+                            "verdict": "unmeasured",
+                            "headline": f"failed: {s.node.get('reason', '')}",
+                            "checks": [],
+                            "measured": {},
+                        }
+                    else:
+                        node["findings"][k][setup] = components.judged(k, by_key[k], m[k], measured[setup]["e"])
+    return out
+
+
+def run_scenario_dir(scenario, out: Path, workers: int, observer):
+    """scenarios.run of a command components' scenario (no report: metrics.json and the trajectories)."""
+    from scenarios.pipeline.runner import run
+
+    return run(scenario, out, workers=workers, report=False, observer=observer)
 
 
 def _as_method1(rows: list[dict], setup: str) -> list[dict]:

@@ -279,7 +279,8 @@ def test_kiss_icp_pipeline_as_a_command_matcher_scores_as_evo_does(tmp_path, mon
     monkeypatch.setenv("RIVERBENCH_CACHE", str(tmp_path / "cache"))
     kiss = (
         '{id = "kiss", kind = "command", '
-        "command = '''env 'kiss_icp_data={{\"max_range\": {max_range}}}' 'kiss_icp_mapping={{\"voxel_size\": {voxel_size}}}' "
+        "command = '''env 'kiss_icp_registration={{\"max_num_threads\": 1}}' 'kiss_icp_data={{\"max_range\": {max_range}}}' "
+        "'kiss_icp_mapping={{\"voxel_size\": {voxel_size}}}' "
         "kiss_icp_pipeline {recording}''', "
         'recording = "rosbag2", output = "results/**/*_poses_tum.txt", anchor = "se3", timeout_s = 600, '
         "params = {max_range = 100.0, voxel_size = 0.5}}"

@@ -395,7 +395,11 @@ def test_kiss_icp_pipeline_pinned_to_one_thread_gives_the_same_bytes_when_crippl
         (STACK, ["--findings", "a,e"], "--findings a: finding a cannot use a command component"),
         (STACK, ["--findings", "e,z"], "unknown finding 'z'"),
         (STACK.replace("kiss_icp_pipeline", "no_such_tool_riverbench"), [], "matchers.kiss.command: no_such_tool_riverbench: not found on PATH"),
-        (STACK.replace("/ros2/odometry_to_tum.py", "/ros2/none.py").replace(sys.executable, "/no/such/python"), [], "no such executable"),
+        (
+            STACK[STACK.index("[[estimators]]") :].replace(sys.executable, "/no/such/python"),
+            [],
+            "estimators.bag_truth.command: /no/such/python: no such",
+        ),
         (STACK.replace('recording = "rosbag2"\noutput = "results', 'recording = "nmea"\noutput = "results'), [], "holds no scans"),
         ('name = "x"\nworld = "charles_river"\n', [], "no command component"),
         (STACK.replace('id = "kiss"', 'id = "gicp"'), [], "matchers.gicp: the study has a matcher of that id"),
@@ -412,3 +416,12 @@ def test_bad_command_input_is_one_line_and_exit_2_before_anything_runs(tmp_path,
     lines = [line for line in result.output.splitlines() if line.strip()]
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in result.output, result.output
     assert not out.exists()
+
+
+def test_a_file_of_command_components_alone_is_enough(tmp_path):
+    """Sections the file leaves out are empty, not the default stack (whose estimators ask for a gicp matcher)."""
+    from scenarios.study.components import from_scenario
+
+    kiss = STACK[STACK.index("[[matchers]]") : STACK.index("[[estimators]]")]
+    (tmp_path / "kiss.toml").write_text(kiss)
+    assert [(c.section, c.id, c.findings) for c in from_scenario(tmp_path / "kiss.toml", ("gicp",))] == [("matchers", "kiss", ("e", "f", "h"))]

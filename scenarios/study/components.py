@@ -45,6 +45,7 @@ from scenarios.pipeline.external import FOLDER, one_file
 from scenarios.score import metrics
 from scenarios.score import windows as win
 from scenarios.score.record import MatcherTrack
+from scenarios.spec import library
 from scenarios.spec.command import CommandSpec
 from scenarios.spec.scenario import Scenario
 from scenarios.study import gnss_findings, matcher_findings
@@ -95,13 +96,15 @@ class Component:
 
 
 def from_scenario(path: str | Path, reserved: tuple[str, ...], keys: tuple[str, ...] | None = None) -> list[Component]:
-    """The command components of the scenario file `path` (validated as any scenario; only its command components are
-    taken: the study's scenario stays its own). `reserved`: ids the study's own matchers have. `keys`: the findings asked
+    """The command components of the scenario file `path` (validated as any scenario, but a section it leaves out is
+    empty, not the default stack; only its command components are taken: the study's scenario stays its own).
+    `reserved`: ids the study's own matchers have. `keys`: the findings asked
     for (None: every one a component applies to). One line (ValueError) when the file has no command component, an id is
     the study's, a component applies to no finding, or a finding asked for takes none of them."""
-    import scenarios
-
-    scenario = scenarios.load(str(path))
+    data = library.read(path)
+    for section in ("matchers", "estimators"):
+        data.setdefault(section, [])  # not the default stack: its estimators would ask for a gicp the file need not have
+    scenario = library.validate(data, Path(path).name)
     found = [Component(section, spec) for section, spec in scenario.commands]
     if not found:
         raise ValueError(f'--scenario {path}: no command component (a [[matchers]] or [[estimators]] of kind = "command") to study')

@@ -17,6 +17,8 @@ from scenarios.study.plan import MATCHERS
 FILE_MODE = 0o644
 DPI = 100
 COLOURS = {"pcl6d": "#1f77b4", "bev3dof": "#d62728", "kiss_icp": "#2ca02c", "gicp": "#9467bd"}
+OTHER_COLOURS = ("#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+"""Colours of the command matchers' curves (the built-ins have theirs)."""
 CAPTIONS = {
     "a": "Seconds without a measured fix (the run's blackout windows), at quality 0, and with fewer than 4 satellites in "
     "direct line of sight (the truth) around each structure, beside the time spent under its deck.",
@@ -26,9 +28,10 @@ CAPTIONS = {
     "d": "Cumulative distribution of the open-water fixes' horizontal error (no facade reflection reaching the antenna); dashed: the study's 1 m.",
     "e": "Wall time of each registration against the points in the scan, per matcher; dashed: 1, 8 and 10 Hz.",
     "f": "Success rate per 1,000-point bin of points per scan, per matcher (bars: registrations per bin, right axis); "
-    "shaded: the study's 6,000-27,000 band.",
+    "shaded: the study's 6,000-27,000 band. A command matcher's: its steps over every revolution of the stretch.",
     "g": "Share of points (or correspondences) each matcher rejected as outliers, per registration; dashed: the study's 10 %.",
-    "h": "Yaw of the chained matcher odometry minus the truth along the stretch, beside the magnetic compass's heading error.",
+    "h": "Yaw of the chained matcher odometry minus the truth along the stretch, beside the magnetic compass's heading error "
+    "(dashed: a command matcher's odometry, every revolution, laid onto the truth at its first pose).",
 }
 
 
@@ -139,8 +142,9 @@ def success_figure(m: dict) -> Figure | None:
     width = (edges[1] - edges[0]) / (len(m["matchers"]) + 1)
     for i, (mid, s) in enumerate(m["matchers"].items()):
         rate = np.array([np.nan if v is None else v for v in s["success"]], dtype=float)
-        ax.plot(centres, rate, marker="o", ms=3, c=COLOURS.get(mid), label=mid)
-        counts.bar(edges[:-1] + (i + 0.5) * width, s["count"], width, color=COLOURS.get(mid), alpha=0.25)
+        colour = COLOURS.get(mid) or OTHER_COLOURS[i % len(OTHER_COLOURS)]
+        ax.plot(centres, rate, marker="o", ms=3, c=colour, label=mid, ls="--" if mid not in COLOURS else "-")
+        counts.bar(edges[:-1] + (i + 0.5) * width, s["count"], width, color=colour, alpha=0.25)
     ax.axvspan(*m["band"], color="#e6c229", alpha=0.15)
     ax.set_ylim(-0.05, 1.05)
     ax.set_xlabel("points per scan")
@@ -168,16 +172,36 @@ def outliers_figure(rows: list[dict], m: dict) -> Figure | None:
     return fig
 
 
-def yaw_figure(m: dict) -> Figure | None:
+def yaw_figure(m: dict, commands: list[dict] = ()) -> Figure | None:
     if not m["series"]["t"]:
         return None
     fig, (ax,) = _figure()
     ax.plot(m["series"]["t"], m["series"]["yaw_error_deg"], label=f"{m['matcher']} odometry")
+    for c in commands:
+        ax.plot(c["series"]["t"], c["series"]["yaw_error_deg"], ls="--", label=f"{c['matcher']} (command) odometry")
     ax.plot(m["compass_series"]["t"], m["compass_series"]["error_deg"], lw=0.8, label="magnetic compass")
     ax.set_xlabel("s")
     ax.set_ylabel("yaw error, deg")
     ax.legend(fontsize=8)
     return fig
+
+
+def commands(tree: dict, key: str) -> list[dict]:
+    """The command components' measured nodes in finding `key` (their first setup's: a matcher's steps are the same
+    under every setup)."""
+    return [next(iter(by_setup.values()))["measured"] for by_setup in tree["findings"][key].get("components", {}).values()]
+
+
+def with_commands(m: dict, nodes: list[dict]) -> dict:
+    """Finding f's node with the command matchers' curves beside the built-ins', on the longer of their bin edges."""
+    if not nodes:
+        return m
+    edges = max([m["bin_edges"], *(n["bin_edges"] for n in nodes)], key=len)
+    out = {**m, "bin_edges": edges, "matchers": {}}
+    for mid, curve in [*m["matchers"].items(), *((f"{k} (command)", v) for n in nodes for k, v in n["matchers"].items())]:
+        pad = len(edges) - 1 - len(curve["count"])
+        out["matchers"][mid] = {**curve, "count": curve["count"] + [0] * pad, "success": curve["success"] + [None] * pad}
+    return out
 
 
 def write_all(plots_dir: Path, tree: dict, samples) -> dict[str, str]:
@@ -191,9 +215,9 @@ def write_all(plots_dir: Path, tree: dict, samples) -> dict[str, str]:
         "c": hdop_figure(samples.gnss),
         "d": open_water_figure(samples.gnss, mask),
         "e": rates_figure(samples.rows),
-        "f": success_figure(m["f"]),
+        "f": success_figure(with_commands(m["f"], commands(tree, "f"))),
         "g": outliers_figure(samples.rows, m["g"]),
-        "h": yaw_figure(m["h"]),
+        "h": yaw_figure(m["h"], commands(tree, "h")),
     }
     plots_dir.mkdir(parents=True, exist_ok=True)
     out = {}

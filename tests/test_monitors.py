@@ -137,22 +137,22 @@ def test_registry_validates_names_and_parameters():
     assert [m.name for m in mon.members] == ["hdop", "consistency"]
 
 
-def _along_a_wall(unobserved: float = 1e6, prior_mps: float = 2.0) -> OdometryTrack:
+def _along_a_wall(unobserved: float = 1e6, prior_mps: float = 2.0, until: float = 40.0) -> OdometryTrack:
     """A straight run east at 2 m/s whose matches leave the along-track direction unobserved (a degenerate match along a
     quay keeps a prior of its own there, prior_mps: the step is right when that is 2, its variance 1e6 m^2)."""
     track = OdometryTrack()
-    for t in np.arange(0.0, 40.0, 0.1):
+    for t in np.arange(0.0, until, 0.1):
         track.add(float(t), np.array([0.1 * prior_mps, 0.0, 0.0]), np.diag([unobserved, 1e-4, 1e-6]))
     return track
 
 
-def _feed(mon, track: OdometryTrack, error_of, suspect_of=lambda t: False, velocity: np.ndarray | None = None) -> list:
+def _feed(mon, track: OdometryTrack, error_of, suspect_of=lambda t: False, velocity: np.ndarray | None = None, until: float = 39.0) -> list:
     """Fixes at 5 Hz on the true track plus error_of(t) metres east; suspect_of(t) fixes are refused on their own
     evidence first (as a C/N0 monitor would); every fix goes through check and commit; velocity: the host filter's (None:
     a host without one). Returns (t, verdict) pairs."""
     ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0, velocity=velocity)
     out = []
-    for t in np.arange(0.0, 39.0, 0.2):
+    for t in np.arange(0.0, until, 0.2):
         obs = _obs(float(t), [2.0 * t + error_of(t), 0.0], sigma=0.5)
         verdict = mon.check(obs, ctx)
         if suspect_of(t) and verdict.trusted:
@@ -172,6 +172,25 @@ def test_a_receivers_ramp_along_an_unobserved_direction_is_refused():
     off = [(t, v) for t, v in verdicts if ramp(t) > 3.0]
     assert off and not any(v.trusted for _, v in off)
     assert not any(v.steady for t, v in verdicts if 21.5 <= t < 33.0)  # the ramp never counts towards a re-lock
+
+
+QUAY_ERROR_M = [0.3, 0.6, 0.3, 0.4, 0.4, 0.3, 0.8, 2.3, 5.1, 9.7, 15.7, 23.9, 32.8, 36.9, 39.1, 42.0, 44.2, 46.0, 46.8, 47.1]
+QUAY_ERROR_M += [46.3, 45.1, 44.3, 42.5, 39.4, 34.4, 28.4, 18.6, 9.8, 2.0, 2.1, 3.0, 4.2, 5.4, 5.8, 5.2, 4.6, 3.2, 1.2, 0.4]
+QUAY_NLOS = [False, False] + [True] * 19 + [False] * 19
+"""The receiver's error at 1 s steps beside the quickstart's quays (seed 0, 1755.1-1794.1 s: gps.csv's err_h and
+nlos_used): a reflected signal smoothed into a ramp to 47 m, then the filter's walk-back once the reflection ends."""
+
+
+def test_a_receivers_walk_back_from_a_refused_ramp_is_refused_until_it_has_settled():
+    """quickstart at 1782.1 s: after the ramp's fixes were refused, the reference's along-quay sigma had grown to 5.5 m,
+    so a fix still 18.5 m off, walking back at 10 m/s, passed it at 3.4 sigma and the ekf followed it (4.4 -> 19.4 m
+    off). The window test against the fix a window earlier, refused as it was, sees the walk-back move against the
+    odometry."""
+    error = lambda t: 0.0 if t < 20.0 else float(np.interp(t - 20.0, np.arange(len(QUAY_ERROR_M)), QUAY_ERROR_M))
+    suspect = lambda t: 20.0 <= t < 60.0 and QUAY_NLOS[min(int(round(t - 20.0)), len(QUAY_NLOS) - 1)]
+    verdicts = _feed(monitors.create("consistency"), _along_a_wall(until=71.0), error, suspect, np.array([2.0, 0.0]), until=70.0)
+    assert not any(v.trusted for t, v in verdicts if error(t) > 6.0)
+    assert any(v.trusted for t, v in verdicts if t > 60.0)  # back on GPS once the fixes move with the vessel again
 
 
 def test_a_constant_velocity_run_along_an_unobserved_direction_is_trusted():

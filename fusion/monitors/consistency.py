@@ -14,7 +14,14 @@ receiver's own filter may carry a wrong estimate that it smooths back slowly; fi
 untrusted for at least `guard_s` and until `guard_n` consecutive fixes pass both tests at the
 tighter `guard_gate_prob` gate (the receiver's track moves with the odometry again and agrees with
 the reference). The window test for the verdict uses trusted fixes only, so the end of a fault is
-not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard.
+not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard. Where the window holds no
+anchor (every fix there refused on this monitor's tests), the verdict's window test is against the fix there all the
+same: a receiver whose filter walks back from a reflected fix moves its output metres per second against the vessel's
+motion, while the reference, carried for tens of seconds along a quay where the odometry is degenerate, is as uncertain
+as that walk-back (quickstart at 1782.1 s, seed 0: a fix 18.5 m off passed the reference test at 3.4 sigma, the
+reference's along-quay sigma 5.5 m after 19 s without an anchor, and the ekf moved 4.4 -> 19.4 m off; the fix had
+moved 16 m more than the vessel in the 2 s before). The price: where a fault ends with a jump back, the first good fixes
+are refused until the fix a window earlier is a good one (about window_s).
 The window test compares with the fix about `window_s` earlier that was trusted or refused only on its own evidence
 (an NLOS C/N0: its position is still a measurement): a receiver whose filter smooths a reflected signal into a ramp of
 metres per second shows the ramp in consecutive fixes while a suspect-satellite monitor may flag some and miss others
@@ -188,6 +195,8 @@ class ConsistencyMonitor(Monitor):
         any_ref = None if gap else self._window_reference(obs.stamp, anchors_only=False)
         window_d2 = math.nan if trusted_ref is None else self._distance(trusted_ref, obs, ctx)
         guard_d2 = math.nan if any_ref is None else self._distance(any_ref, obs, ctx)
+        if trusted_ref is None:  # no anchor in the window: the receiver's own track must move with the odometry
+            window_d2 = guard_d2
         ref = self._reference_at(obs, ctx)
         ref_d2 = math.nan
         if ref is not None:

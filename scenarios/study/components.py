@@ -171,7 +171,7 @@ def scored(run_dir: Path, scenario: Scenario, tree: dict, component: Component, 
     """Read back what the run scored for `component` (its poses on the run's scans under its contract)."""
     node = tree[component.section][component.id]
     run = rescore.FinishedRun.read(run_dir, scenario, tree)
-    counts = np.array([points.get(float(t), 0) for t in run.scan_t], dtype=float)
+    counts = on_scans(points, run.scan_t)
     placed = np.full((len(run.scan_t), 4, 4), np.nan)
     if not node.get("failed"):
         workdir = run_dir / FOLDER / component.id
@@ -180,10 +180,24 @@ def scored(run_dir: Path, scenario: Scenario, tree: dict, component: Component, 
     return Scored(run_dir, node, run.scan_t, placed, counts, run.mount)
 
 
+def on_scans(points: dict[float, int], scan_t: np.ndarray) -> np.ndarray:
+    """The counted points of each scan (the count stamped nearest it within a microsecond: the run directory's stamps
+    are read back from its files; 0 where none was counted)."""
+    stamps = np.array(sorted(points), dtype=float)
+    out = np.zeros(len(scan_t))
+    if not len(stamps):
+        return out
+    j = np.clip(np.searchsorted(stamps, scan_t), 1, len(stamps) - 1) if len(stamps) > 1 else np.zeros(len(scan_t), int)
+    j = np.where(np.abs(stamps[j - 1] - scan_t) < np.abs(stamps[j] - scan_t), j - 1, j) if len(stamps) > 1 else j
+    near = np.abs(stamps[j] - scan_t) <= 1e-6
+    out[near] = [points[float(stamps[k])] for k in j[near]]
+    return out
+
+
 def summary(s: Scored) -> dict:
     """What study.json keeps of a component's run: whether it failed and why, its coverage, APE and costs."""
     n = s.node
-    out = {"failed": bool(n.get("failed")), "run_dir": s.run_dir.name, "external": n.get("external", {})}
+    out = {"failed": bool(n.get("failed")), "external": n.get("external", {})}
     if n.get("failed"):
         return out | {"reason": n.get("reason", "")}
     keep = ("coverage", "ape", "ape_aligned", "success") if "ape_aligned" in n else ("coverage", "ape", "available")

@@ -263,13 +263,16 @@ def rate(rows: list[dict], s: Scored) -> dict:
 
 def success(rows: list[dict], band: tuple[int, int]) -> dict:
     """Finding f for a command matcher: matcher_findings.success_curve's node, with the share of accurate steps
-    (ACCURATE_M, ACCURATE_DEG) in the band and below it beside."""
+    (ACCURATE_M, ACCURATE_DEG) per bin, in the band and below it beside."""
     mid = rows[0]["matcher"] if rows else ""
     node = matcher_findings.success_curve(rows, [mid], band)
     c = matcher_findings.columns(rows, mid)
     accurate = (c["ok"] == 1) & (c["error_m"] <= ACCURATE_M) & (c["yaw_error_deg"] <= ACCURATE_DEG)
     in_band, below = (c["points"] >= band[0]) & (c["points"] <= band[1]), c["points"] < band[0]
     mine = node["matchers"][mid]
+    edges = np.asarray(node["bin_edges"])
+    idx = np.digitize(c["points"], edges) - 1
+    mine["accurate"] = [float(accurate[idx == b].mean()) if (idx == b).any() else None for b in range(len(edges) - 1)]
     mine["band_accurate"] = float(accurate[in_band].mean()) if in_band.any() else math.nan
     mine["below_accurate"] = float(accurate[below].mean()) if below.any() else math.nan
     mine["accurate_m"], mine["accurate_deg"] = ACCURATE_M, ACCURATE_DEG

@@ -28,7 +28,8 @@ CAPTIONS = {
     "d": "Cumulative distribution of the open-water fixes' horizontal error (no facade reflection reaching the antenna); dashed: the study's 1 m.",
     "e": "Wall time of each registration against the points in the scan, per matcher; dashed: 1, 8 and 10 Hz.",
     "f": "Success rate per 1,000-point bin of points per scan, per matcher (bars: registrations per bin, right axis); "
-    "shaded: the study's 6,000-27,000 band. A command matcher's: its steps over every revolution of the stretch.",
+    "shaded: the study's 6,000-27,000 band. A command matcher's (dashed): its steps over every revolution of the stretch, its "
+    "own claim (a pose), and dotted the share of them within 5 cm and 0.5 deg of the true motion.",
     "g": "Share of points (or correspondences) each matcher rejected as outliers, per registration; dashed: the study's 10 %.",
     "h": "Yaw of the chained matcher odometry minus the truth along the stretch, beside the magnetic compass's heading error "
     "(dashed: a command matcher's odometry, every revolution, laid onto the truth at its first pose).",
@@ -145,6 +146,9 @@ def success_figure(m: dict) -> Figure | None:
         colour = COLOURS.get(mid) or OTHER_COLOURS[i % len(OTHER_COLOURS)]
         ax.plot(centres, rate, marker="o", ms=3, c=colour, label=mid, ls="--" if mid not in COLOURS else "-")
         counts.bar(edges[:-1] + (i + 0.5) * width, s["count"], width, color=colour, alpha=0.25)
+        if "accurate" in s:  # a command matcher: success is its own claim (a pose), so its accurate steps beside it
+            accurate = np.array([np.nan if v is None else v for v in s["accurate"]], dtype=float)
+            ax.plot(centres, accurate, ls=":", marker="x", ms=4, c=colour, label=f"{mid}: within {s['accurate_m']:g} m, {s['accurate_deg']:g} deg")
     ax.axvspan(*m["band"], color="#e6c229", alpha=0.15)
     ax.set_ylim(-0.05, 1.05)
     ax.set_xlabel("points per scan")
@@ -201,6 +205,8 @@ def with_commands(m: dict, nodes: list[dict]) -> dict:
     for mid, curve in [*m["matchers"].items(), *((f"{k} (command)", v) for n in nodes for k, v in n["matchers"].items())]:
         pad = len(edges) - 1 - len(curve["count"])
         out["matchers"][mid] = {**curve, "count": curve["count"] + [0] * pad, "success": curve["success"] + [None] * pad}
+        if "accurate" in curve:
+            out["matchers"][mid]["accurate"] = curve["accurate"] + [None] * pad
     return out
 
 

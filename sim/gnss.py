@@ -28,7 +28,7 @@ from sim.gnss_fix import FixTruth, GnssFix, SatelliteReport, SatelliteTruth
 from sim.gnss_profiles import DEFAULT_PROFILE, Corrections, ProfileName, with_profile
 from sim.multipath import L1_WAVELENGTH_M, FacadeIndex, code_multipath_error
 from sim.nmea.systems import PRIMARY
-from sim.pseudorange import PseudorangeNoise, RangeErrors
+from sim.pseudorange import PseudorangeNoise, RangeErrors, SmoothingLock
 from sim.receiver_filter import CvKalman, FilterConfig
 from sim.rtk import RTK_FIXED, RTK_FLOAT, RtkConfig, RtkErrors, RtkLock
 from sim.scene import split
@@ -236,6 +236,8 @@ class GnssReceiver:
         self._cn0_rng = stream(self.seed, "gnss.cn0")
         self._navigator = _Navigator(self.config)
         self._open_sky = _Navigator(self.config)
+        self._smoothing = SmoothingLock(self.config.noise, len(self.constellation), stream(self.seed, "gnss.smoothing"))
+        self._open_sky_smoothing = SmoothingLock(self.config.noise, len(self.constellation), stream(self.seed, "gnss.smoothing_open_sky"))
         rtk = self.config.corrections.kind == "rtk"
         self._rtk_errors = RtkErrors(self.config.rtk, stream(self.seed, "gnss.rtk")) if rtk else None
         self._rtk_lock = RtkLock.start(self.config.rtk)
@@ -315,14 +317,21 @@ class GnssReceiver:
         bias += self._forced_bias(t, view, dirs)
         slow, white = self._errors.advance(t)
         mapping = 1.0 / np.sin(el)
+        clear = cn0_open_sky >= noise.tracking_threshold_dbhz
         open_sky_range = geometric + self._errors.clock_m(t) + mapping * (slow[view] + self._code_scale[view] * white[view])
         pseudorange = open_sky_range + bias
-        sigma = noise.sigma(el)
+        sigma = open_sky_sigma = noise.sigma(el)
+        if noise.restart_white_zenith_m is not None:  # carrier smoothing restarted where lock was lost (SmoothingLock)
+            unsmoothed, scale = self._smoothing.update(view, tracked)
+            open_unsmoothed, open_scale = self._open_sky_smoothing.update(view, clear)
+            code = self._code_scale[view]
+            pseudorange = geometric + self._errors.clock_m(t) + mapping * (slow[view] + code * (white[view] + unsmoothed)) + bias
+            open_sky_range = geometric + self._errors.clock_m(t) + mapping * (slow[view] + code * (white[view] + open_unsmoothed))
+            sigma, open_sky_sigma = noise.sigma(el, scale), noise.sigma(el, open_scale)
 
         solution = self._navigator.solve(sat_enu[tracked], pseudorange[tracked], sigma[tracked])
         enu, velocity, quality = self._navigator.step(t, solution)
-        clear = cn0_open_sky >= noise.tracking_threshold_dbhz
-        open_sky_enu, _, open_sky_quality = self._open_sky.step(t, self._open_sky.solve(sat_enu[clear], open_sky_range[clear], sigma[clear]))
+        open_sky_enu, _, open_sky_quality = self._open_sky.step(t, self._open_sky.solve(sat_enu[clear], open_sky_range[clear], open_sky_sigma[clear]))
 
         prn = self.constellation.prn[view].tolist()
         rtk_errors = self._rtk_errors.advance(t) if self._rtk_errors is not None else None

@@ -11,7 +11,8 @@ figures it reproduces in open sky (tests/test_gnss_profiles.py measures them; be
   SBAS: docs.novatel.com/OEM7 SMART2 performance specifications); CEP50 = 95% / 2.079 for a circular normal error.
   SBAS broadcasts satellite clock/orbit corrections and an ionospheric grid, which remove most of the slowly
   varying range error; carrier smoothing (a Hatch filter) removes most of the white code noise.
-- `sbas_gps`: the same receiver class tracking GPS alone, as the Hemisphere V102 does (user guide: "GPS L1, C/A code")
+- `sbas_gps`: the same receiver class tracking GPS alone, as the Hemisphere V102 does (user guide: "GPS L1, C/A code"),
+  its carrier smoothing restarting when a satellite's lock is lost (noise.restart_white_zenith_m: the raw code's 0.6 m)
   and as a receiver of the field study's era (about 2016) did: Galileo's initial services began on 15 December 2016
   (European Commission) and BeiDou's global service in 2020 (BDS-3, CSNO), so a 2016 marine L1 receiver saw GPS
   (GLONASS at most). Its datasheet figures are sbas's, which are GPS figures. Only `riverbench study --setup field`
@@ -119,13 +120,19 @@ PROFILES: dict[str, Profile] = {
         p95_m=0.9,
         figures="as sbas (the V102's and the SMART2's figures are GPS figures)",
         defaults={
-            "noise": {"white_zenith_m": 0.15, "correlated_zenith_m": 0.24},
+            "noise": {"white_zenith_m": 0.15, "correlated_zenith_m": 0.24, "restart_white_zenith_m": 0.6},
             "filter": {"fix_sigma_m": 0.4},
             "corrections": {"kind": "sbas", "interval_s": 6.0, "station_id": 133},
             "constellations": ("GPS",),
         },
         why={
             **_SBAS_WHY,
+            "noise.restart_white_zenith_m": "carrier smoothing restarts when a satellite's lock is lost (Ashtech G12 SMI: "
+            "'After reacquisition, smoothing is reset'; NovAtel CSMOOTH; Septentrio setSmoothingInterval; Hemisphere, the "
+            "V102's maker, smooths over 15 min by default, $JSMOOTH): a range reacquired after a bridge starts with the raw "
+            "code's 0.6 m white noise (the consumer's) and is averaged down to the smoothed 0.15 m as its window grows. "
+            "The physics of every carrier-smoothing receiver; the library's sbas keeps it off until its baseline is "
+            "refreshed (issue 42)",
             "constellations": "GPS alone: the Hemisphere V102 tracks GPS L1 C/A (user guide, appendix B); in 2016 Galileo's "
             "initial services had not begun (15 December 2016, European Commission) nor BeiDou's global service (2020)",
         },

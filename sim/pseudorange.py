@@ -31,11 +31,27 @@ class PseudorangeNoise(BaseModel):
     cn0_horizon_dbhz: float = Field(36.0, description="C/N0 of a direct signal at the horizon, dB-Hz (linear in sin(el)).")
     cn0_jitter_db: float = Field(1.0, ge=0.0, description="Sigma of the epoch-to-epoch C/N0 fluctuation, dB.")
     tracking_threshold_dbhz: float = Field(28.0, description="Signals below this C/N0 are not tracked, dB-Hz.")
+    restart_white_zenith_m: float | None = Field(
+        None,
+        gt=0.0,
+        description="Carrier smoothing restarts on loss of lock: a satellite tracked again after a gap has this zenith "
+        "sigma of white code noise (the raw code's) on its first epoch; the smoothing filter's window then grows by an "
+        "epoch at a time and averages the raw noise down as 1/sqrt(epochs since lock) towards white_zenith_m (the "
+        "smoothed code's), its residual drifting from epoch to epoch (SmoothingLock), m. Receivers reset their "
+        "code-carrier smoothing at reacquisition (Ashtech G12 reference manual, SMI: 'smoothing constant is changed "
+        "from 1 to 1/SMI from locking a satellite ... After reacquisition, smoothing is reset'; NovAtel MiLLennium "
+        "CSMOOTH: the lock time restarts and the smoothing takes its full effect only after the smoothing time; "
+        "Septentrio PolaRx5 setSmoothingInterval: the noise 'will decrease over time'; Hemisphere, the V102's maker, "
+        "smooths over 15 minutes by default, $JSMOOTH), and weight such a range by its lock time. None: smoothing "
+        "never restarts (white_zenith_m at every epoch).",
+    )
 
-    def sigma(self, el_rad: np.ndarray) -> np.ndarray:
-        """Total one-sigma pseudorange error at elevation el (for weighting), floored at 0.1 m at zenith."""
-        zenith = max(float(np.hypot(self.white_zenith_m, self.correlated_zenith_m)), 0.1)
-        return zenith / np.sin(el_rad)
+    def sigma(self, el_rad: np.ndarray, white_scale: np.ndarray | None = None) -> np.ndarray:
+        """Total one-sigma pseudorange error at elevation el (for weighting), floored at 0.1 m at zenith; white_scale
+        multiplies each satellite's white part (a range whose smoothing restarted, SmoothingLock)."""
+        if white_scale is None:
+            return max(float(np.hypot(self.white_zenith_m, self.correlated_zenith_m)), 0.1) / np.sin(el_rad)
+        return np.maximum(np.hypot(self.white_zenith_m * white_scale, self.correlated_zenith_m), 0.1) / np.sin(el_rad)
 
     def cn0(self, el_rad: np.ndarray) -> np.ndarray:
         """Nominal C/N0 of a direct signal at elevation el, dB-Hz."""
@@ -65,3 +81,34 @@ class RangeErrors:
             self.slow = phi * self.slow + np.sqrt(1.0 - phi * phi) * self.noise.correlated_zenith_m * self.rng.standard_normal(n)
         self.t = t
         return self.slow, self.rng.standard_normal(n) * self.noise.white_zenith_m
+
+
+class SmoothingLock:
+    """Carrier smoothing per satellite since it was last acquired (PseudorangeNoise.restart_white_zenith_m). A
+    satellite not tracked at an epoch loses lock; when it is tracked again its smoothing filter restarts from the raw
+    code, and the window grows by one epoch at a time (a Hatch filter with M = 1, 2, 3, ...), so its range carries,
+    beside the smoothed code's own white noise, the mean of the raw noise drawn since lock: sigma_t / sqrt(k) after k
+    epochs (sigma_t^2 = raw^2 - smoothed^2), and a mean, so it drifts from epoch to epoch rather than jumping. One per
+    receiver chain, with its own random stream."""
+
+    def __init__(self, noise: PseudorangeNoise, n_sats: int, rng: np.random.Generator):
+        self.noise = noise
+        self.rng = rng
+        self.epochs = np.zeros(n_sats, dtype=np.int64)
+        self.mean = np.zeros(n_sats)
+        raw, smoothed = noise.restart_white_zenith_m or 0.0, noise.white_zenith_m
+        self.sigma_t = float(np.sqrt(max(raw * raw - smoothed * smoothed, 0.0)))
+
+    def update(self, sats: np.ndarray, tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Advance the satellites in view (`sats`: their indices; `tracked`: mask over them; every other satellite
+        loses lock). Returns, per satellite in view, the zenith error the smoothing has not yet averaged out (m) and
+        the factor on the white sigma a receiver weights the range with (its lock time known: 1 once smoothed)."""
+        held = np.zeros(len(self.epochs), dtype=bool)
+        held[sats[tracked]] = True
+        self.epochs = np.where(held, self.epochs + 1, 0)
+        draws = self.rng.standard_normal(len(self.epochs)) * self.sigma_t
+        k = np.maximum(self.epochs, 1)
+        self.mean = np.where(held, self.mean + (draws - self.mean) / k, 0.0)
+        smoothed = self.noise.white_zenith_m
+        factor = np.sqrt(1.0 + (self.sigma_t / smoothed) ** 2 / k[sats]) if smoothed > 0.0 else np.ones(len(sats))
+        return self.mean[sats], factor

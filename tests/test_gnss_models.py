@@ -112,3 +112,32 @@ def test_facade_search_is_bounded_by_the_radius():
     assert len(index.near(np.array([300.0, -100.0]))) == 0  # 110 m from the face
     far = index.reflections(np.array([300.0, -100.0, 1.3]), np.array([gw.direction(180.0, 20.0)]))
     assert len(far) == 0
+
+
+def test_carrier_smoothing_restarts_at_reacquisition_and_averages_the_raw_noise_down():
+    # sim.pseudorange.SmoothingLock: a satellite's smoothing restarts when its lock is lost; the residual of the raw
+    # code's noise is the mean of the draws since lock (sigma_t / sqrt(k)), drifting from epoch to epoch
+    from sim.pseudorange import PseudorangeNoise, SmoothingLock
+
+    noise = PseudorangeNoise(white_zenith_m=0.15, restart_white_zenith_m=0.6)
+    n = 4000
+    lock = SmoothingLock(noise, n, np.random.default_rng(0))
+    sats, tracked = np.arange(n), np.ones(n, bool)
+    sigma_t = np.sqrt(0.6**2 - 0.15**2)
+    series = []
+    for k in range(1, 26):
+        residual, factor = lock.update(sats, tracked)
+        series.append(residual)
+        assert np.std(residual) == pytest.approx(sigma_t / np.sqrt(k), rel=0.06)
+        np.testing.assert_allclose(factor, np.sqrt(1.0 + (sigma_t / 0.15) ** 2 / k))
+    assert np.corrcoef(series[-2], series[-1])[0, 1] > 0.95  # a mean: it drifts, it does not jump
+    lost = np.zeros(n, bool)
+    lost[: n // 2] = True  # half the satellites lose lock for an epoch, then come back
+    residual, _ = lock.update(sats, ~lost)
+    assert (residual[lost] == 0.0).all() and (lock.epochs[lost] == 0).all()
+    residual, factor = lock.update(sats, tracked)
+    assert np.std(residual[lost]) == pytest.approx(sigma_t, rel=0.06) and (lock.epochs[lost] == 1).all()
+    assert np.std(residual[~lost]) == pytest.approx(sigma_t / np.sqrt(27), rel=0.08)
+    off = SmoothingLock(PseudorangeNoise(white_zenith_m=0.15), 3, np.random.default_rng(0))  # no restart: nothing added
+    residual, factor = off.update(np.arange(3), np.ones(3, bool))
+    assert (residual == 0.0).all() and (factor == np.sqrt(1.0)).all()

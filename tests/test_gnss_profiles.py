@@ -53,10 +53,13 @@ def test_open_sky_cep50_is_the_datasheet_figure_with_gps_as_the_datasheet_states
 
 
 def test_sbas_gps_profile_is_sbas_tracking_gps_alone():
-    # the field study's receiver (riverbench study --setup field): sbas's every field, GPS its only system
+    # the field study's receiver (riverbench study --setup field): sbas's every field, GPS its only system, its carrier
+    # smoothing restarting at reacquisition (the raw code's 0.6 m white noise, the consumer's; off in the library's sbas)
     gps = GnssConfig(profile="sbas_gps")
-    assert gps.constellations == ("GPS",)
-    assert gps.model_dump(exclude={"profile"}) == GnssConfig(profile="sbas", constellations=("GPS",)).model_dump(exclude={"profile"})
+    assert gps.constellations == ("GPS",) and gps.noise.restart_white_zenith_m == PseudorangeNoise().white_zenith_m == 0.6
+    sbas = GnssConfig(profile="sbas", constellations=("GPS",), noise={"restart_white_zenith_m": 0.6})
+    assert gps.model_dump(exclude={"profile"}) == sbas.model_dump(exclude={"profile"})
+    assert GnssConfig(profile="sbas").noise.restart_white_zenith_m is None
     assert PROFILES["sbas_gps"].cep50_m == PROFILES["sbas"].cep50_m
 
 

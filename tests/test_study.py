@@ -265,7 +265,10 @@ def test_the_setups_change_only_the_receiver_and_method1():
     bench = study_scenario()
     field = study_scenario(receiver=SETUPS["field"].receiver, field_method1=SETUPS["field"].method1)
     assert bench.gnss.constellations == ("GPS", "GLONASS", "GALILEO", "BEIDOU") and field.gnss.constellations == ("GPS",)
-    assert field.gnss.model_dump(exclude={"profile", "constellations"}) == bench.gnss.model_dump(exclude={"profile", "constellations"})
+    # and the field's receiver restarts its carrier smoothing at reacquisition (sim.pseudorange.SmoothingLock)
+    same = {"profile": True, "constellations": True, "noise": {"restart_white_zenith_m"}}
+    assert field.gnss.model_dump(exclude=same) == bench.gnss.model_dump(exclude=same)
+    assert field.gnss.noise.restart_white_zenith_m == 0.6 and bench.gnss.noise.restart_white_zenith_m is None
     assert [m.id for m in field.matchers] == [m.id for m in bench.matchers] + [FIELD_METHOD1_ID]
     method1 = field.matcher_spec(FIELD_METHOD1_ID)
     assert method1.ref == "pcl6d" and method1.params["skip_prealign_max_dt_s"] == 0.0  # pre-aligned on every pair

@@ -122,7 +122,7 @@ def test_window_test_cancels_a_constant_bias(bx, by, yaw):
 
 
 def test_registry_validates_names_and_parameters():
-    assert set(monitors.available()) == {"hdop", "nis", "consistency", "cn0", "combined", "combined_cn0", "none", "shadow"}
+    assert set(monitors.available()) == {"hdop", "nis", "consistency", "cn0", "combined", "combined_cn0", "combined_shadow", "none", "shadow"}
     with pytest.raises(ValueError, match="unknown monitor 'raim'"):
         monitors.create("raim")
     with pytest.raises(ValueError, match="monitor 'hdop': max_hdop: Input should be greater than 0"):
@@ -268,3 +268,11 @@ def test_shadow_refuses_a_fix_that_uses_a_satellite_behind_a_wall_the_lidar_sees
     assert verdict(2.6, [(270.0, 15.0, True)]).trusted
     mon.reset()  # a re-lock: the map was placed with a pose that was astray
     assert verdict(3.0, [(90.0, 15.0, True)]).trusted
+
+
+def test_combined_shadow_is_registered_and_maps_the_scans():
+    """consistency + shadow by one name: its monitor maps the scans, so the feed gives an ekf with it each scan's points."""
+    mon = monitors.create("combined_shadow")
+    assert [m.name for m in mon.members] == ["consistency", "shadow"] and mon.wants_scans
+    assert fusion.create("ekf", monitor="combined_shadow").wants_scans
+    assert not fusion.create("ekf").wants_scans  # the default, combined_cn0

@@ -1,4 +1,4 @@
-"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, shadow, combined, combined_cn0, none, and plugins."""
+"""GPS integrity monitors: hdop (baseline), nis, consistency, cn0, shadow, combined, combined_cn0, combined_shadow, none, and plugins."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pydantic import BaseModel, ValidationError
 
 from fusion.monitors.base import FixContext, Monitor
 from fusion.monitors.cn0 import Cn0Monitor, Cn0Params
-from fusion.monitors.combined import CombinedCn0Params, CombinedMonitor, CombinedParams
+from fusion.monitors.combined import CombinedCn0Params, CombinedMonitor, CombinedParams, CombinedShadowParams
 from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
 from fusion.monitors.hdop import HdopMonitor, HdopParams
 from fusion.monitors.nis import NisMonitor, NisParams
@@ -25,6 +25,7 @@ _MONITORS: dict[str, tuple[Callable[..., Monitor], type[BaseModel]]] = {  # (cla
     "cn0": (Cn0Monitor, Cn0Params),
     "combined": (CombinedMonitor, CombinedParams),
     "combined_cn0": (CombinedMonitor, CombinedCn0Params),
+    "combined_shadow": (CombinedMonitor, CombinedShadowParams),
     "none": (NoMonitor, NoneParams),
     "shadow": (ShadowMonitor, ShadowParams),
 }

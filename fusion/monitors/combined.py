@@ -1,6 +1,7 @@
-"""Monitors 'combined' (default nis + consistency) and 'combined_cn0' (default consistency + cn0): distrust a
-fix when any member monitor does. The verdict is on the fix's own evidence only when every refusing member's is (a member
-that finds the fix at odds with the filter speaks for divergence), and steady when every member's is (fusion.Verdict)."""
+"""Monitors 'combined' (default nis + consistency), 'combined_cn0' (default consistency + cn0) and 'combined_shadow'
+(default consistency + shadow): distrust a fix when any member monitor does. The verdict is on the
+fix's own evidence only when every refusing member's is (a member that finds the fix at odds with the filter speaks for
+divergence), and steady when every member's is (fusion.Verdict)."""
 
 from __future__ import annotations
 
@@ -33,6 +34,19 @@ class CombinedCn0Params(CombinedParams):
         description="monitor names combined by OR [consistency, cn0: the best combination measured by "
         "benchmarks/monitors.py (charles_river and canal_lock, gicp odometry): cn0 catches the fixes that use NLOS "
         "satellites, consistency the re-acquisition after an outage and displacement jumps]",
+    )
+
+
+class CombinedShadowParams(CombinedParams):
+    """Parameters of the 'combined_shadow' monitor: 'combined' with consistency + shadow as its default members."""
+
+    members: list[str] = Field(
+        default_factory=lambda: ["consistency", "shadow"],
+        min_length=1,
+        description="monitor names combined by OR [consistency, shadow: the LiDAR's map of what stands above the water "
+        "tells a satellite behind a quay or a facade (shadow) without refusing the direct signals a tree crown "
+        "attenuates, which C/N0 cannot tell from a reflection's loss; consistency catches the re-acquisition after an "
+        "outage, displacement jumps and a receiver's walk-back]",
     )
 
 

@@ -52,6 +52,12 @@ class Pcl6dParams(MatcherParams, DegeneracyParams, FloorParams):
     edge_length_similarity: float = Field(0.9, gt=0.0, lt=1.0, description="edge-length checker similarity (default 0.9)")
     ransac_max_iterations: int = Field(50000, ge=1, description="RANSAC iterations (default 50000)")
     ransac_confidence: float = Field(0.999, gt=0.0, lt=1.0, description="RANSAC confidence (default 0.999)")
+    ransac_until: Literal["confidence", "max_iterations"] = Field(
+        "confidence",
+        description="when RANSAC stops: 'confidence' (default) once ransac_confidence is reached (Open3D's adaptive count); "
+        "'max_iterations' after exactly ransac_max_iterations hypotheses, as PCL's SampleConsensusPrerejective does (its "
+        "computeTransformation loop has no early exit: registration/impl/sample_consensus_prerejective.hpp)",
+    )
     ransac_seed: int = Field(0, ge=0, description="seed of Open3D's RANSAC sampler, set before each pre-alignment for repeatable runs (default 0)")
     planar_initial_guess: bool = Field(True, description="keep only x, y, yaw of the pre-alignment as ICP's start (boats stay level; default on)")
     skip_prealign_max_dt_s: float = Field(
@@ -143,7 +149,7 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
                 reg.TransformationEstimationPointToPoint(False),
                 3,
                 [reg.CorrespondenceCheckerBasedOnEdgeLength(p.edge_length_similarity), reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m)],
-                reg.RANSACConvergenceCriteria(p.ransac_max_iterations, p.ransac_confidence),
+                reg.RANSACConvergenceCriteria(p.ransac_max_iterations, 1.0 if p.ransac_until == "max_iterations" else p.ransac_confidence),
             )
         T = np.asarray(res.transformation)
         # feature correspondences the final transform rejects (the field study's outlier share)

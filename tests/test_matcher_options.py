@@ -43,8 +43,9 @@ def _check(r, truth, t_tol, yaw_tol_deg=0.3):
         dict(prealign="fgr"),
         dict(prealign="ransac", icp="gicp"),
         dict(prealign="ransac", skip_icp_min_fitness=0.5, skip_icp_max_rmse_m=1.0, max_outlier_share=1.0),
+        dict(prealign="ransac", ransac_until="max_iterations", ransac_max_iterations=5000),  # PCL's prerejective RANSAC
     ],
-    ids=["ransac", "fgr", "ransac+gicp", "skip-icp"],
+    ids=["ransac", "fgr", "ransac+gicp", "skip-icp", "ransac-fixed-count"],
 )
 def test_pcl6d_pre_alignment_recovers_a_turn(params, turned_pair):
     a, b, truth = turned_pair

@@ -272,8 +272,11 @@ def test_the_setups_change_only_the_receiver_and_method1():
     assert [m.id for m in field.matchers] == [m.id for m in bench.matchers] + [FIELD_METHOD1_ID]
     method1 = field.matcher_spec(FIELD_METHOD1_ID)
     assert method1.ref == "pcl6d" and method1.params["skip_prealign_max_dt_s"] == 0.0  # pre-aligned on every pair
-    assert {k: v for k, v in method1.params.items() if k != "skip_prealign_max_dt_s"} == {
-        k: v for k, v in field.matcher_spec("pcl6d").params.items() if k != "skip_prealign_max_dt_s"
+    # its RANSAC as PCL's SampleConsensusPrerejective runs it: a fixed 5,000 hypotheses (PCL's default), no early exit
+    assert method1.params["ransac_until"] == "max_iterations" and method1.params["ransac_max_iterations"] == 5000
+    changed = ("skip_prealign_max_dt_s", "ransac_until", "ransac_max_iterations")
+    assert {k: v for k, v in method1.params.items() if k not in changed} == {
+        k: v for k, v in field.matcher_spec("pcl6d").params.items() if k not in changed
     }
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -194,3 +195,24 @@ def test_a_matcher_slipping_with_a_tight_covariance_is_caught_by_the_slip_test()
         rms[name] = np.sqrt(np.mean(np.sum(err[:, :2] ** 2, axis=1)))
     assert rms["slip test"] < gps_rms
     assert rms["no slip test"] > 3.0 * gps_rms  # believing it loses the boat
+
+
+def test_the_gps_bias_follows_the_satellite_geometry_at_once():
+    """The receiver's error is its range errors (slow) mapped through the geometry (at once): when HDOP falls from 15 at a
+    deck's edge to 1, the bias's variance is HDOP 1's level at the next fix, not 225 times it relaxing over 30 s, and the
+    ratio of the bias's sd before and after is the ratio of the error levels (docs/models.md, a deck's-edge bias)."""
+    spec = StreamSpec(duration=40.0, seed=3)
+    events, t_grid, poses = generate(spec)
+    edge = [(k, s, replace(f, hdop=15.0)) if k == "fix" and 20.0 <= s < 25.0 else (k, s, f) for k, s, f in events]
+    # every fix refused (HDOP above 0.5), so no update hides what the level does; the odometry carries the pose
+    est = fusion.create("ekf", matcher="m", monitor="hdop", monitor_params={"max_hdop": 0.5}, initial_pose=tuple(_initial(t_grid, poses)))
+    p = est.params
+    level = lambda hdop: p.bias_variance((p.uere_m * hdop) ** 2 / 2.0)
+    sd = {}
+    for kind, stamp, payload in edge:
+        run(est, [(kind, stamp, payload)])
+        if kind == "fix" and stamp < 25.2:
+            sd[round(stamp, 1)] = math.sqrt(est.P[6, 6])  # the bias's east sd (state BX)
+    last_edge, first_open = max(t for t in sd if t < 25.0), min(t for t in sd if t >= 25.0)
+    assert sd[first_open] / sd[last_edge] == pytest.approx(math.sqrt(level(1.0) / level(15.0)), rel=0.02)
+    assert sd[first_open] ** 2 == pytest.approx(level(1.0), rel=0.05)

@@ -88,14 +88,19 @@ class SmoothingLock:
     satellite not tracked at an epoch loses lock; when it is tracked again its smoothing filter restarts from the raw
     code, and the window grows by one epoch at a time (a Hatch filter with M = 1, 2, 3, ...), so its range carries,
     beside the smoothed code's own white noise, the mean of the raw noise drawn since lock: sigma_t / sqrt(k) after k
-    epochs (sigma_t^2 = raw^2 - smoothed^2), and a mean, so it drifts from epoch to epoch rather than jumping. One per
-    receiver chain, with its own random stream."""
+    epochs (sigma_t^2 = raw^2 - smoothed^2), and a mean, so it drifts from epoch to epoch rather than jumping. The
+    satellites tracked at the first epoch have been smoothed for long (the receiver was on before the scenario began).
+    One per receiver chain, with its own random stream."""
+
+    SETTLED = 1_000_000
+    """The epochs since lock of a satellite already tracked when the receiver is first asked (its residual: 0)."""
 
     def __init__(self, noise: PseudorangeNoise, n_sats: int, rng: np.random.Generator):
         self.noise = noise
         self.rng = rng
         self.epochs = np.zeros(n_sats, dtype=np.int64)
         self.mean = np.zeros(n_sats)
+        self.started = False
         raw, smoothed = noise.restart_white_zenith_m or 0.0, noise.white_zenith_m
         self.sigma_t = float(np.sqrt(max(raw * raw - smoothed * smoothed, 0.0)))
 
@@ -105,7 +110,9 @@ class SmoothingLock:
         the factor on the white sigma a receiver weights the range with (its lock time known: 1 once smoothed)."""
         held = np.zeros(len(self.epochs), dtype=bool)
         held[sats[tracked]] = True
-        self.epochs = np.where(held, self.epochs + 1, 0)
+        first = self.started is False
+        self.started = True
+        self.epochs = np.where(held, np.where(first, self.SETTLED, self.epochs + 1), 0)
         draws = self.rng.standard_normal(len(self.epochs)) * self.sigma_t
         k = np.maximum(self.epochs, 1)
         self.mean = np.where(held, self.mean + (draws - self.mean) / k, 0.0)

@@ -123,6 +123,7 @@ def test_carrier_smoothing_restarts_at_reacquisition_and_averages_the_raw_noise_
     n = 4000
     lock = SmoothingLock(noise, n, np.random.default_rng(0))
     sats, tracked = np.arange(n), np.ones(n, bool)
+    residual, factor = lock.update(sats, ~tracked)  # the first epoch: none tracked (a receiver starting under a deck)
     sigma_t = np.sqrt(0.6**2 - 0.15**2)
     series = []
     for k in range(1, 26):
@@ -138,6 +139,9 @@ def test_carrier_smoothing_restarts_at_reacquisition_and_averages_the_raw_noise_
     residual, factor = lock.update(sats, tracked)
     assert np.std(residual[lost]) == pytest.approx(sigma_t, rel=0.06) and (lock.epochs[lost] == 1).all()
     assert np.std(residual[~lost]) == pytest.approx(sigma_t / np.sqrt(27), rel=0.08)
+    warm = SmoothingLock(noise, 3, np.random.default_rng(0))  # tracked at the first epoch: smoothed for long already
+    residual, factor = warm.update(np.arange(3), np.ones(3, bool))
+    assert np.abs(residual).max() < 0.01 and np.allclose(factor, 1.0, atol=1e-3)
     off = SmoothingLock(PseudorangeNoise(white_zenith_m=0.15), 3, np.random.default_rng(0))  # no restart: nothing added
     residual, factor = off.update(np.arange(3), np.ones(3, bool))
     assert (residual == 0.0).all() and (factor == np.sqrt(1.0)).all()

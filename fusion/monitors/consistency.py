@@ -193,10 +193,9 @@ class ConsistencyMonitor(Monitor):
         # window test against a trusted fix (for the verdict) and against any fix (for the guard)
         trusted_ref = None if gap else self._window_reference(obs.stamp, anchors_only=True)
         any_ref = None if gap else self._window_reference(obs.stamp, anchors_only=False)
-        window_d2 = math.nan if trusted_ref is None else self._distance(trusted_ref, obs, ctx)
         guard_d2 = math.nan if any_ref is None else self._distance(any_ref, obs, ctx)
-        if trusted_ref is None:  # no anchor in the window: the receiver's own track must move with the odometry
-            window_d2 = guard_d2
+        # no anchor in the window: the receiver's own track must move with the odometry
+        window_d2 = guard_d2 if trusted_ref is None else self._distance(trusted_ref, obs, ctx)
         ref = self._reference_at(obs, ctx)
         ref_d2 = math.nan
         if ref is not None:

@@ -59,35 +59,13 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
         for name, node in setups.items():
             out += [
                 Text(f"{name}: {node.get('cause', '')}"),
-                Table(
-                    ["check", "the study", f"the bench ({name})", "holds"],
-                    [
-                        [
-                            Cell(c["claim"], css="text"),
-                            Cell(c["study"], css="text"),
-                            Cell(c["measured"], css="text"),
-                            Cell(_holds(c["holds"]), css=_css(c["holds"])),
-                        ]
-                        for c in node["checks"]
-                    ],
-                ),
+                _checks_table(node, f"the bench ({name})"),
             ]
         for cid, by_setup in f.get("components", {}).items():
             for name, node in by_setup.items():
                 out += [
                     Text(f"{cid} (your command {tree['components'][cid]['section'][:-1]}), {name}: {node['headline']}"),
-                    Table(
-                        ["check", "the study", f"{cid} ({name})", "holds"],
-                        [
-                            [
-                                Cell(c["claim"], css="text"),
-                                Cell(c["study"], css="text"),
-                                Cell(c["measured"], css="text"),
-                                Cell(_holds(c["holds"]), css=_css(c["holds"])),
-                            ]
-                            for c in node["checks"]
-                        ],
-                    ),
+                    _checks_table(node, f"{cid} ({name})"),
                 ]
         if k in images:
             out.append(Image(images[k], plots.CAPTIONS[k]))
@@ -167,6 +145,15 @@ def agreeing(tree: dict) -> dict[str, int]:
         for name, node in _by_setup(f).items():
             counts[name] = counts.get(name, 0) + (node["verdict"] == "agrees")
     return counts
+
+
+def _checks_table(node: dict, measured_by: str) -> Table:
+    """A finding's checks under one setup: the claim, the study's figure, the measured one (column `measured_by`), held."""
+    rows = [
+        [Cell(c["claim"], css="text"), Cell(c["study"], css="text"), Cell(c["measured"], css="text"), Cell(_holds(c["holds"]), css=_css(c["holds"]))]
+        for c in node["checks"]
+    ]
+    return Table(["check", "the study", measured_by, "holds"], rows)
 
 
 def _holds(value: bool | None) -> str:

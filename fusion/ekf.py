@@ -264,6 +264,9 @@ class Ekf(Estimator):
     def _body_velocity(self) -> np.ndarray:
         return self.x[V : VL + 1].copy()
 
+    def _body_velocity_cov(self) -> np.ndarray:
+        return self.P[V : VL + 1, V : VL + 1].copy()
+
     def _heading(self) -> tuple[float, float]:
         return float(self.x[TH]), float(self.P[TH, TH])
 

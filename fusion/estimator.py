@@ -9,7 +9,7 @@ from scipy.stats import chi2
 
 from fusion.bootstrap import HEADING_FROM_COMPASS, HEADING_FROM_COURSE, HEADING_GIVEN, HEADING_UNKNOWN, Alignment, Bootstrap
 from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
-from fusion.geometry import is_psd, lidar_to_base, planar, pose_matrix, rot2
+from fusion.geometry import drot2, is_psd, lidar_to_base, planar, pose_matrix, rot2
 from fusion.integrity import protection_level
 from fusion.monitors import FixContext, Monitor
 from fusion.observation import FixObservation, screen
@@ -392,6 +392,18 @@ class Estimator:
         """The filter's (forward, left) speed in base_link, if it keeps one."""
         return None
 
+    def _body_velocity_cov(self) -> np.ndarray | None:
+        """The 2x2 covariance of _body_velocity, if the filter keeps one."""
+        return None
+
+    def _world_velocity_cov(self, heading: tuple[float, float] | None, body: np.ndarray | None) -> np.ndarray | None:
+        """The covariance of the world velocity rot2(yaw) @ body: the body velocity's rotated, plus the heading's share."""
+        cov = self._body_velocity_cov() if heading is not None and body is not None else None
+        if cov is None or heading is None or body is None:
+            return None
+        rot, turn = rot2(heading[0]), drot2(heading[0]) @ body
+        return rot @ cov @ rot.T + np.outer(turn, turn) * heading[1]
+
     def _drop_unobserved(self, step_cov: np.ndarray) -> np.ndarray:
         """Make translation directions the matcher barely observed 'unknown' (variance UNOBSERVED_VAR,
         uncorrelated with the rest) and cap the heading variance, so that no huge reported variance
@@ -482,6 +494,7 @@ class Estimator:
             odometry=self.odometry,
             correlation_s=self.params.gps_correlation_s,
             velocity=None if heading is None or body is None else rot2(heading[0]) @ body,
+            velocity_cov=self._world_velocity_cov(heading, body),
             antenna=(self._level_pose() @ np.r_[self.antenna, 1.0])[:3] if self.initialized else None,
         )
 

@@ -308,6 +308,10 @@ class Pf(Estimator):
     def _body_velocity(self) -> np.ndarray:
         return self.weights @ self.vel[:, :2]
 
+    def _body_velocity_cov(self) -> np.ndarray:
+        spread = self.vel[:, :2] - self._body_velocity()
+        return (spread * self.weights[:, None]).T @ spread
+
     def _heading(self) -> tuple[float, float]:
         mean, cov = self._mean_cov(self.poses, 2)
         return float(mean[2]), float(cov[2, 2])

@@ -19,7 +19,8 @@ class FixContext:
     noise it assumes for this fix (None before it is initialised); yaw/yaw_var: the filter's heading and its variance (None before initialisation);
     lever: antenna (x, y) on base_link; odometry: the scan-matching chain; correlation_s: the
     receiver's error time constant (see EstimatorParams.gps_correlation_s); velocity: the filter's horizontal
-    velocity of base_link in the world, m/s (None before initialisation, or for a filter without one).
+    velocity of base_link in the world, m/s (None before initialisation, or for a filter without one); velocity_cov: its
+    2x2 covariance, (m/s)^2, with the heading's share (None where the filter keeps none).
     """
 
     predicted: tuple[np.ndarray, np.ndarray, np.ndarray] | None
@@ -30,6 +31,7 @@ class FixContext:
     correlation_s: float = 0.0
     velocity: np.ndarray | None = None
     antenna: np.ndarray | None = None
+    velocity_cov: np.ndarray | None = None
 
 
 def mahalanobis2(r: np.ndarray, cov: np.ndarray) -> float:

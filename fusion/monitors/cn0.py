@@ -28,6 +28,16 @@ profile (`profile_template`: the direct-signal line and jitter measured for this
 antenna under open sky) stands in for the template until it is learned. Satellites with a
 non-finite or non-positive C/N0 or elevation are skipped and named in the reason.
 
+Weighed by the geometry: C/N0 alone cannot tell a reflection's loss from a tree crown's attenuation of a direct signal
+(both 5-10 dB), but only a reflection adds path, and a satellite's range error moves the fix by its slope (the horizontal
+shift of the receiver's least-squares fix per metre of range bias, fusion.monitors.satellite_geometry: elevation
+weights, the larger of one clock's and one per constellation's). The suspects (deficit > gate_sigma) refuse the fix only when together they could
+move it by more than `fault_m` were each reflected with `nlos_bias_m` of extra path; otherwise the fix is judged on the
+other satellites' deficits and the reason names the suspects and the shift they could cause. A low satellite among many
+barely moves the fix (charles_river: 14 deg among 17, 0.06 m/m, 3.2 m at 50 m), one under a deck among few moves it
+much. The price: a reflection longer than `nlos_bias_m` on a satellite judged harmless moves the fix by more than
+`fault_m`; the consistency monitor beside it in 'combined_cn0' sees that as a displacement the odometry did not make.
+
 Several constellations and signals (`per_signal`): a receiver reports each system's signals at its
 own level: the signals' specified minimum received powers differ (PRIOR_OFFSETS_DB, from the
 systems' interface specifications), and receivers differ further in how they track and report
@@ -85,6 +95,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.stats import norm
 
 from fusion.monitors.base import FixContext, Monitor
+from fusion.monitors.satellite_geometry import horizontal_slopes
 from fusion.observation import FixObservation
 from fusion.verdict import Verdict
 
@@ -161,6 +172,24 @@ class Cn0Params(BaseModel):
         "output in about 4 s; 0 = no hold]",
     )
 
+    nlos_bias_m: float = Field(
+        50.0,
+        ge=0,
+        description="range bias the suspect satellites are weighed with, m: a fix is refused only when its suspects "
+        "(deficit > gate_sigma) could together move it by more than fault_m, each by its slope (the horizontal shift of "
+        "the receiver's least-squares fix per metre of range bias, fusion.monitors.satellite_geometry) times this [50: a "
+        "reflection off a surface d away adds at most 2 d to the path (triangle inequality; 2 d cos(el) off a facade "
+        "facing the satellite, sim.multipath's image method), and beside a vessel the walls that block a signal and "
+        "reflect it stand within about 25 m (a canal's or lock chamber's width, a quay alongside); a direct signal through "
+        "a tree crown, 5-10 dB down like a reflection, is thereby not refused when it cannot move the fix by a fault "
+        "(charles_river: a 14 deg satellite among 17, slope 0.06 m/m). 0 = every suspect refuses the fix, as before]",
+    )
+    fault_m: float = Field(
+        5.0,
+        gt=0,
+        description="horizontal error the suspects must be able to cause for the fix to be refused, m [5: the fault the "
+        "library's integrity scores count (monitor.added_5m)]",
+    )
     per_signal: bool = Field(
         True,
         description="expect each constellation's and signal's C/N0 at its own offset from GPS L1 C/A (module docstring) [True; "
@@ -303,15 +332,36 @@ class Cn0Monitor(Monitor):
         return Verdict(True, statistic, "C/N0 consistent with a direct signal" + note)
 
     def _deficit(self, obs: FixObservation) -> tuple[float, float | None, str, str]:
-        """(largest normalised deficit of the used satellites, template sigma or None when it cannot judge,
-        the satellites over the gate, a note on skipped reports or why it cannot judge)."""
+        """(largest normalised deficit of the used satellites that count, template sigma or None when it cannot judge,
+        the satellites over the gate, a note on skipped reports, suspects weighed and found harmless, or why it cannot
+        judge). The suspects (deficit over the gate) count only when they could together move the fix by more than
+        fault_m (see nlos_bias_m); otherwise the deficit is the largest of the others'."""
         judged = self.satellite_deficits(obs)
         if isinstance(judged, str):
             return math.nan, None, "", judged
         deficit, used, sigma, skipped = judged
         names = [_label(s) for s in used]
+        suspect = deficit > self.gate
         named = ", ".join(f"{name} {d:.1f}" for d, name in sorted(zip(deficit.tolist(), names), reverse=True) if d > self.gate)
-        return float(deficit.max()), sigma, named, skipped
+        shift = self._suspects_shift(obs, [s for s, k in zip(used, suspect) if k])
+        if shift is None:
+            return float(deficit.max()), sigma, named, skipped
+        if shift > self.params.fault_m:
+            return float(deficit.max()), sigma, f"{named} (together they can move the fix {shift:.1f} m)", skipped
+        harmless = f"; {named} below the template, but together they move the fix at most {shift:.1f} m (<= fault_m {self.params.fault_m:g})"
+        return float(deficit[~suspect].max()) if (~suspect).any() else 0.0, sigma, "", skipped + harmless
+
+    def _suspects_shift(self, obs: FixObservation, suspects: list) -> float | None:
+        """How far the suspect satellites could move the fix together (nlos_bias_m times the sum of their slopes), m, or
+        None when they are not weighed (none, or nlos_bias_m 0)."""
+        if not suspects or self.params.nlos_bias_m <= 0:
+            return None
+        used = [s for s in obs.sats if getattr(s, "used", False)]
+        slopes = horizontal_slopes(
+            np.array([_float(s.el_deg) for s in used]), np.array([_float(s.az_deg) for s in used]), [str(getattr(s, "system", "GPS")) for s in used]
+        )
+        picked = [k for k, s in enumerate(used) if any(s is t for t in suspects)]
+        return float(self.params.nlos_bias_m * slopes[picked].sum())
 
     def satellite_deficits(self, obs: FixObservation) -> tuple[np.ndarray, list, float, str] | str:
         """Each used satellite's normalised C/N0 deficit below what a direct signal gives (the verdict's evidence, per

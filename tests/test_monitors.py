@@ -146,11 +146,21 @@ def _along_a_wall(unobserved: float = 1e6, prior_mps: float = 2.0, until: float 
     return track
 
 
-def _feed(mon, track: OdometryTrack, error_of, suspect_of=lambda t: False, velocity: np.ndarray | None = None, until: float = 39.0) -> list:
+def _feed(
+    mon,
+    track: OdometryTrack,
+    error_of,
+    suspect_of=lambda t: False,
+    velocity: np.ndarray | None = None,
+    until: float = 39.0,
+    velocity_cov: np.ndarray | None = None,
+) -> list:
     """Fixes at 5 Hz on the true track plus error_of(t) metres east; suspect_of(t) fixes are refused on their own
     evidence first (as a C/N0 monitor would); every fix goes through check and commit; velocity: the host filter's (None:
-    a host without one). Returns (t, verdict) pairs."""
-    ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0, velocity=velocity)
+    a host without one), velocity_cov its covariance. Returns (t, verdict) pairs."""
+    ctx = FixContext(
+        predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0, velocity=velocity, velocity_cov=velocity_cov
+    )
     out = []
     for t in np.arange(0.0, until, 0.2):
         obs = _obs(float(t), [2.0 * t + error_of(t), 0.0], sigma=0.5)
@@ -210,6 +220,25 @@ def test_an_unobserved_direction_moves_with_the_filters_velocity_not_the_matcher
     ramp = lambda t: 0.0 if t < 20.0 else min(3.0 * (t - 20.0), 40.0)
     verdicts = _feed(monitors.create("consistency"), stuck, ramp, suspect_of=lambda t: 12.0 <= t < 20.0, velocity=east)
     assert not any(v.trusted for t, v in verdicts if ramp(t) > 3.0)
+
+
+def test_a_filter_velocity_the_filter_itself_doubts_does_not_refuse_good_fixes():
+    """quickstart seed 4 at 2006.5 s: one wrong match (5.6 m/s for the true 2.3) gave the ekf 3.7 m/s, +-0.5 and growing;
+    the slower matches after it counted as slips, and with the unobserved direction bounded by the monitor's fixed 0.3 m/s
+    every good fix was refused as too slow for 43 s (the ekf 84 m off). The window test now takes at least the host's own
+    velocity variance along that direction: the good fixes pass it once the re-acquisition guard is over. The price, held
+    here: while the host doubts its speed, a ramp's first metres pass the window test too (an 8 m/s walk-back: its fixes
+    6.4 and 8.0 m off), and a host never corrected (here no trusted fix updates it, as it would the ekf) drags the
+    reference along; the ramp's climb is refused."""
+    track = _along_a_wall()
+    wrong = np.array([3.7, 0.0])  # the vessel makes 2 m/s east
+    assert not any(v.trusted for t, v in _feed(monitors.create("consistency"), track, lambda t: 0.0, velocity=wrong) if t >= 5.0)
+    doubted = np.diag([0.9**2, 0.3**2])
+    verdicts = _feed(monitors.create("consistency"), track, lambda t: 0.0, velocity=wrong, velocity_cov=doubted)
+    assert all(v.trusted for t, v in verdicts if 5.2 <= t < 7.0)  # after the guard (5 s), before the reference drifts
+    ramp = lambda t: 0.0 if t < 20.0 else min(8.0 * (t - 20.0), 40.0)
+    verdicts = _feed(monitors.create("consistency"), track, ramp, velocity=wrong, velocity_cov=doubted)
+    assert not any(v.trusted for t, v in verdicts if 21.1 <= t < 25.0)
 
 
 def test_a_reference_starts_from_fixes_refused_only_on_their_own_evidence():

@@ -145,11 +145,7 @@ DEFAULT_RUN = ("busy_waterway", "steer_harvard_bridge")
 loop); the rest of the library runs with the slow tests (CI runs both), to keep the default run under 10 minutes."""
 
 
-NO_LONGER_DISCRIMINATING = {
-    "steer_harvard_bridge": "with the SBAS four-system receiver the Harvard Bridge outage is ~1.2 s (4 s GPS alone), and the "
-    "autopilot steered on gps_only keeps 1.50 m cross-track (seed 0) inside the ekf-steered bound of 3.0 m (baseline "
-    "median 1.65, 0.20-2.87): the scenario needs a longer blackout to tell a fused estimate from the receiver's",
-}
+NO_LONGER_DISCRIMINATING: dict[str, str] = {}
 """Scenarios whose expectations no longer fail without what they test, and why (measured); a strict xfail each."""
 
 

@@ -236,6 +236,12 @@ def test_parameters_are_validated_by_name():
         monitors.create("cn0", mid_q=0.9, high_q=0.8)
     with pytest.raises(ValueError, match="'bin_count'"):
         monitors.create("cn0", bin_count=4)
+    for bad in (-5.0, math.nan, math.inf):  # a NaN bias would weigh every suspect harmless, silently
+        with pytest.raises(ValueError, match="monitor 'cn0': nlos_bias_m"):
+            monitors.create("cn0", nlos_bias_m=bad)
+    for bad in (0.0, math.nan):
+        with pytest.raises(ValueError, match="monitor 'cn0': fault_m"):
+            monitors.create("cn0", fault_m=bad)
     mon = monitors.create("combined", members=["nis", "consistency", "cn0"])
     assert [m.name for m in mon.members] == ["nis", "consistency", "cn0"]
 

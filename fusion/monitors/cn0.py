@@ -175,6 +175,7 @@ class Cn0Params(BaseModel):
     nlos_bias_m: float = Field(
         50.0,
         ge=0,
+        allow_inf_nan=False,
         description="range bias the suspect satellites are weighed with, m: a fix is refused only when its suspects "
         "(deficit > gate_sigma) could together move it by more than fault_m, each by its slope (the horizontal shift of "
         "the receiver's least-squares fix per metre of range bias, fusion.monitors.satellite_geometry) times this [50: a "
@@ -187,6 +188,7 @@ class Cn0Params(BaseModel):
     fault_m: float = Field(
         5.0,
         gt=0,
+        allow_inf_nan=False,
         description="horizontal error the suspects must be able to cause for the fix to be refused, m [5: the fault the "
         "library's integrity scores count (monitor.added_5m)]",
     )

@@ -277,6 +277,7 @@ class Cn0Monitor(Monitor):
         self._sigma = math.nan
         self._z_mid, self._z_high = norm.ppf(p.mid_q), norm.ppf(p.high_q)
         self._recent: deque[tuple[float, float]] = deque()  # (stamp, deficit) of committed fixes within hold_s
+        self._judged: tuple[FixObservation, tuple[float, float | None, str, str]] | None = None  # check's, for commit
 
     def template(self, el_deg: float | np.ndarray) -> tuple[np.ndarray, float] | None:
         """Direct GPS L1 C/A C/N0 (dB-Hz) at these elevations and its jitter sigma (dB): learned, else the receiver profile's,
@@ -316,7 +317,8 @@ class Cn0Monitor(Monitor):
         return self._satellites.setdefault(key, len(self._satellites))
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
-        deficit, sigma, named, note = self._deficit(obs)
+        self._judged = (obs, self._deficit(obs))
+        deficit, sigma, named, note = self._judged[1]
         if sigma is None:
             return Verdict(True, math.nan, note)
         held = [d for t, d in self._recent if obs.stamp - self.params.hold_s <= t < obs.stamp]
@@ -394,7 +396,8 @@ class Cn0Monitor(Monitor):
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
         """Remember the fix's deficit for the hold; learn from every tracked satellite (used or not) and refit the template."""
-        deficit = self._deficit(obs)[0]
+        deficit = (self._judged[1] if self._judged is not None and self._judged[0] is obs else self._deficit(obs))[0]
+        self._judged = None
         while self._recent and self._recent[0][0] < obs.stamp - self.params.hold_s:
             self._recent.popleft()
         if math.isfinite(deficit) and self.params.hold_s > 0:

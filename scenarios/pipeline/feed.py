@@ -87,6 +87,11 @@ class Feed:
         self.lookahead_scans = lookahead_scans
         self.scans = 0
 
+    @property
+    def maps_scans(self) -> bool:
+        """Whether an estimator reads the scans' points (its monitor maps them, e.g. shadow)."""
+        return any(getattr(est, "wants_scans", False) for est in self.estimators.values() if est is not None)
+
     def pose_of(self, estimator_id: str) -> np.ndarray:
         """An estimator's current pose (NaN when it failed or gives something else than a 4x4 pose)."""
         if estimator_id in self.dead:

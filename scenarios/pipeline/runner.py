@@ -41,6 +41,7 @@ from scenarios.score import windows as win
 from scenarios.score.expectations import Outcome
 from scenarios.score.record import RunRecord
 from scenarios.spec.scenario import Scenario
+from sim.scan import Scan
 
 RUN_NUMBERS = ("seed", "t_start", "t_end", "sim_s", "wall_s", "realtime_factor", "peak_rss_mb", "scans", "fixes", "workers")
 """The numbers of metrics.json's `run` node (besides scenario, scenario_hash, lanes and failures)."""
@@ -119,9 +120,8 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
     recorder = stack.recorder()
     setups = matcher_setups(scenario)
     open_loop = vessel_run.loop is None  # else the path, hence the next scan, depends on the fused pose
-    ahead = ScanAhead(scenario, scan_times(lidar, t_start, t_end)) if workers > 1 and open_loop else None
     lookahead = PIPELINED_SCANS if open_loop else LOOKAHEAD_SCANS
-    with ahead or nullcontext(), MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
+    with MatcherPool(setups, workers) as pool, open(tmp / "gps.nmea", "w", newline="") as nmea:
         feed = Feed(
             scenario,
             pool,
@@ -132,11 +132,17 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
             observer=observer,
             lookahead_scans=lookahead,
         )
-        feed.drive(
-            traffic_log.tap(vessel_run.events(feed, ahead.scan if ahead else None)),
-            lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
-            (ValueError, RuntimeError, FloatingPointError),
-        )
+        points_read = bool(setups) or feed.maps_scans or observer is not None or bool(traffic_log.traffic)
+        ahead = ScanAhead(scenario, scan_times(lidar, t_start, t_end)) if workers > 1 and open_loop and points_read else None
+        # nothing reads a revolution's points (no matcher, no scan-mapping monitor, no view, no movers to count): the
+        # scans are stamps alone, as many as the LiDAR makes, and the run costs what the receiver and filters cost
+        cast = ahead.scan if ahead else (None if points_read or not open_loop else Scan.empty)
+        with ahead or nullcontext():
+            feed.drive(
+                traffic_log.tap(vessel_run.events(feed, cast)),
+                lambda event: progress is not None and progress(event.stamp, t_start, t_end, feed.scans),
+                (ValueError, RuntimeError, FloatingPointError),
+            )
         pool.close()
         lanes = pool.lanes
     workers_rss = pool.workers_rss_mb + (ahead.rss_mb if ahead else 0.0)

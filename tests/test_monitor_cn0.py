@@ -155,6 +155,31 @@ def test_an_nlos_fix_is_held_for_hold_s_as_the_receiver_filter_still_carries_it(
             assert verdict.statistic < mon.gate
 
 
+@pytest.mark.parametrize("half_life_s", [4.0, None])
+def test_a_held_fault_counts_while_its_halving_effect_could_still_move_the_fix_by_a_fault(half_life_s):
+    """Analytic: a suspect that could move the fix by 10 m (nlos_bias_m x its slope) is held while 10 m x 0.5^(age /
+    half-life) > fault_m 5 m, i.e. for one half-life (4 s of the 6 s hold); without a half-life for the whole hold."""
+    from fusion.monitors.satellite_geometry import horizontal_slopes
+
+    el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
+    az = (np.arange(len(el)) * 137.5) % 360.0  # make_fix's azimuths
+    slope = horizontal_slopes(el, az, ["GPS"] * len(el))[1]
+    mon = monitors.create("cn0", hold_s=6.0, hold_half_life_s=half_life_s, nlos_bias_m=10.0 / slope, fault_m=5.0)
+    rng = np.random.default_rng(9)
+    for t, e, snr in clean_epochs(rng, 400):
+        feed(mon, make_fix(t, e, snr))
+    snr = direct_cn0(el, rng)
+    snr[1] -= 2 * NLOS_LOSS_DB
+    flagged = feed(mon, make_fix(100.0, el, snr))
+    assert not flagged.trusted and "can move the fix 10.0 m" in flagged.reason
+    carried_s = 6.0 if half_life_s is None else half_life_s  # 10 x 0.5^(age / half-life) = 5 at one half-life
+    for k in range(1, 40):
+        dt = round(0.2 * k, 1)
+        verdict = feed(mon, make_fix(100.0 + dt, el, direct_cn0(el, rng)))
+        if abs(dt - carried_s) > 1e-9:  # on the boundary, float rounding decides
+            assert verdict.trusted == (dt > carried_s), (dt, verdict.reason)
+
+
 def test_learning_survives_nlos_in_the_training_data():
     mon = warmed(seed=4, nlos_share=0.15)
     rng = np.random.default_rng(5)

@@ -18,6 +18,7 @@ from scenarios.pipeline.stream import FixEvent, ScanEvent
 from scenarios.score.vessel_log import VesselWatch
 from sim.autopilot import Autopilot
 from sim.driven_trajectory import DrivenTrajectory
+from sim.scan import Scan
 
 
 class ClosedLoop:
@@ -31,6 +32,9 @@ class ClosedLoop:
         self.t_start, self.end_station_m, self.t_limit = float(t_start), float(end_station_m), float(t_limit)
         self._fixes = 0
         self._periods = 0
+        self.cast: Callable[[float], Scan] | None = None
+        """The revolution at t in place of the LiDAR's, when set (scenarios.pipeline.runner: stamps alone when nothing reads
+        a revolution's points)."""
 
     @property
     def done(self) -> bool:
@@ -51,7 +55,7 @@ class ClosedLoop:
         contact = self.watch.period(t0, t1, commands)
         events: list[ScanEvent | FixEvent] = []
         if contact is None:
-            events.append(ScanEvent(t0, self.lidar.scan(self.world, self.trajectory, t0)))
+            events.append(ScanEvent(t0, self.lidar.scan(self.world, self.trajectory, t0) if self.cast is None else self.cast(t0)))
         until = t1 if contact is None else contact.t
         while (t_fix := float(on_ns_grid(self.t_start + self._fixes / self.receiver.rate_hz))) < until:
             events.append(FixEvent(t_fix, self.receiver.fix(self.world, self.trajectory, t_fix)))

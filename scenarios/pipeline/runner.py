@@ -135,8 +135,9 @@ def _run_into(scenario: Scenario, tmp: Path, workers: int, report: bool, progres
         points_read = bool(setups) or feed.maps_scans or observer is not None or bool(traffic_log.traffic)
         ahead = ScanAhead(scenario, scan_times(lidar, t_start, t_end)) if workers > 1 and open_loop and points_read else None
         # nothing reads a revolution's points (no matcher, no scan-mapping monitor, no view, no movers to count): the
-        # scans are stamps alone, as many as the LiDAR makes, and the run costs what the receiver and filters cost
-        cast = ahead.scan if ahead else (None if points_read or not open_loop else Scan.empty)
+        # scans are stamps alone, as many as the LiDAR makes (in closed loop too), and the run costs what the receiver,
+        # the filters and the vessel cost
+        cast = ahead.scan if ahead else (None if points_read else Scan.empty)
         with ahead or nullcontext():
             feed.drive(
                 traffic_log.tap(vessel_run.events(feed, cast)),

@@ -68,14 +68,15 @@ class VesselRun:
 
     def events(self, feed, cast: Callable[[float], Scan] | None = None) -> Iterator:
         """The run's scans and fixes in time order, with the IMU's and the compass's outputs between them when there are
-        such sensors; closed loop steers on `feed`'s estimator (or the truth). Open loop: `cast(t)`, when given, gives the
-        revolution at t (a ScanAhead's)."""
+        such sensors; closed loop steers on `feed`'s estimator (or the truth). `cast(t)`, when given, gives the revolution
+        at t (a ScanAhead's in open loop, or one of stamps alone when nothing reads its points)."""
         return with_inertial(self._events(feed, cast), self.trajectory, self.imu, self.compass, self.t_start)
 
     def _events(self, feed, cast: Callable[[float], Scan] | None) -> Iterator:
         if self.loop is None:
             stream = planned_events(self.world, self.trajectory, self.lidar, self.receiver, self.t_start, self.t_end, cast)
             return watched(stream, self.watch, self.lidar.revolution_s)
+        self.loop.cast = cast
         control = self.scenario.control
         autopilot = Autopilot(self.world.route, control.dynamics, self.scenario.vessel.speed_mps, control.autopilot)
         believed = self.trajectory.pose if control.steer_on == "truth" else (lambda t: feed.pose_of(control.steer_on))

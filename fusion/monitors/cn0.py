@@ -173,13 +173,15 @@ class Cn0Params(BaseModel):
     )
 
     hold_half_life_s: float | None = Field(
-        4.0,
+        None,
         gt=0,
         description="a held fault counts only while it could still move the fix by more than fault_m: its effect (how "
         "far its suspects could move the fix, nlos_bias_m) halves every this many s, as hold_s's receiver filter halves a "
-        "raw fault's effect on its output [4; None: held for hold_s whatever its size, as before 2026-12-02. Measured "
-        "with the monitor alone on the GNSS fixes of 9 library stretches, seeds 0 and 3: recall unchanged on all 18, "
-        "false alarms down on 12 (charles_river 0.145 -> 0.097, dam_lock 0.592 -> 0.492), up on none]",
+        "raw fault's effect on its output [None: held for hold_s whatever its size. 4 (the receiver-filter figure) lowers "
+        "the monitor's false alarms alone (9 library stretches, seeds 0 and 3: recall unchanged on all 18, false alarms "
+        "down on 12, charles_river 0.145 -> 0.097) but in the fused ekf it releases the hold onto a receiver's NLOS ramp "
+        "still within 5 m, whose speed the filter then carries through the next outage (dam_lock_inertial seed 0 APE "
+        "max 3.78 -> 4.77 m; quickstart seed 4 APE p95 5.39 -> 5.77 m), so it is off by default; docs/models.md]",
     )
 
     nlos_bias_m: float = Field(

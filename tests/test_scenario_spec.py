@@ -39,6 +39,10 @@ def test_every_library_scenario_loads_with_a_description():
         ({"estimators": [{"id": "e", "kind": "ekf", "matcher": "nope"}]}, "no matcher with id 'nope'"),
         ({"estimators": [{"id": "e", "kind": "ekf", "monitor": "psychic"}]}, "psychic"),
         ({"estimators": [{"id": "e", "kind": "ekf", "params": {"uere_m": -2}}]}, "uere_m"),
+        # a combined monitor's members' parameters are checked before the run too (a NaN was dropped silently)
+        ({"estimators": [{"id": "e", "kind": "ekf", "monitor_params": {"member_params": {"cn0": {"nlos_bias_m": math.nan}}}}]}, "nlos_bias_m"),
+        ({"estimators": [{"id": "e", "kind": "ekf", "monitor_params": {"member_params": {"cn0": {"nlos_bias": 3}}}}]}, "'nlos_bias'"),
+        ({"estimators": [{"id": "e", "kind": "ekf", "monitor_params": {"member_params": {"nis": {"gate": 3}}}}]}, "non-member 'nis'"),
         ({"stretch": {"start_s": 10, "end_m": 50}}, "stretch"),
         ({"stretch": {"start_s": 10, "end_s": 5}}, "end after it starts"),
         ({"expect": ["estimators.ekf.ape.p95 <"]}, "metric op number"),

@@ -53,18 +53,28 @@ def params_model(name: str) -> type[BaseModel]:
     return _MONITORS[name][1] if name in _MONITORS else _plugin(name).Params
 
 
-def create(name: str, **params) -> Monitor:
-    """A fresh monitor by name; unknown names and parameters raise ValueError naming them."""
-    cls = _MONITORS[name][0] if name in _MONITORS else _plugin(name)
-    p = validate_params(params_model(name), params, f"monitor '{name}'")
-    if cls is CombinedMonitor:
-        assert isinstance(p, CombinedParams)  # the only models _MONITORS pairs with CombinedMonitor
+def validated(name: str, params: dict) -> BaseModel:
+    """Monitor `name`'s parameters validated, a combined monitor's members and their parameters with them, so that a
+    scenario can be checked before anything runs; a bad name, key or value is a one-line ValueError naming it."""
+    model = params_model(name)
+    p = validate_params(model, params, f"monitor '{name}'")
+    if isinstance(p, CombinedParams) and name in _MONITORS:
         nested = [m for m in p.members if m in _MONITORS and _MONITORS[m][0] is CombinedMonitor]
         if nested:
             raise ValueError(f"monitor '{name}': parameter 'members' cannot contain '{nested[0]}'")
         unknown = set(p.member_params) - set(p.members)
         if unknown:
             raise ValueError(f"monitor '{name}': parameter 'member_params' names a non-member '{sorted(unknown)[0]}'")
+        for member in p.members:
+            validated(member, p.member_params.get(member, {}))
+    return p
+
+
+def create(name: str, **params) -> Monitor:
+    """A fresh monitor by name; unknown names and parameters raise ValueError naming them."""
+    cls = _MONITORS[name][0] if name in _MONITORS else _plugin(name)
+    p = validated(name, params)
+    if isinstance(p, CombinedParams) and cls is CombinedMonitor:
         return CombinedMonitor(p, [create(m, **p.member_params.get(m, {})) for m in p.members])
     return cls(p)
 
@@ -76,4 +86,4 @@ def _plugin(name: str) -> type[Any]:
     return plugins.load(name, GROUP, "monitor", methods=("check", "commit", "reset", "note_outage"))
 
 
-__all__ = ["GROUP", "FixContext", "Monitor", "available", "create", "params_model", "validate_params"]
+__all__ = ["GROUP", "FixContext", "Monitor", "available", "create", "params_model", "validate_params", "validated"]

@@ -159,6 +159,10 @@ class EstimatorSpec(BaseModel):
         if "seed" in self.params:
             raise ValueError(f"{where}: params.seed: every component takes the scenario's top-level seed; set 'seed' there")
         monitor = self.monitor or model.model_fields["monitor"].default
+        try:  # a combined monitor's members' parameters too, which its own model keeps as plain tables
+            fusion.monitors.validated(monitor, self.monitor_params)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
         monitor_model = fusion.monitors.params_model(monitor)
         self.monitor_params = _validated(monitor_model, self.monitor_params, f"{where} monitor {monitor!r}")
         self.monitor = monitor

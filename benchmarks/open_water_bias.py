@@ -1,7 +1,7 @@
 """Who wins in open water, and why: the fused filters against gps_only on a stretch without odometry, at several sky epochs.
 
 In open water the ekf and pf track the receiver's fixes; gps_only reports the latest fix at each scan, so it lags them
-by the fix's age (fixes at 5 Hz, scans at 10 Hz, not aligned: 0.1-0.2 s). The receiver's error there varies slowly (its
+by the fix's age (fixes at 5 Hz, scans at 10 Hz, the scan first at equal stamps: 0.1 or 0.2 s). The receiver's error there varies slowly (its
 residuals are correlated over minutes, longer than the stretch), so over one run it is nearly a bias, of either sign
 along the track, drawn by the seed and the sky at the epoch. Where it points ahead, gps_only's lag cancels part of it and
 gps_only beats the filters; where it points behind, the lag adds to it. This prints, per epoch and seed, the fixes' mean error

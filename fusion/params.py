@@ -177,6 +177,7 @@ class EstimatorParams(BaseEstimatorParams):
         1e-5,
         gt=0,
         lt=1,
+        allow_inf_nan=False,
         description="probability per epoch that the horizontal error exceeds the reported protection level "
         "(fusion.integrity) [1e-5: IMO Resolution A.1046(27)'s integrity risk for ocean, coastal and inland navigation "
         "(1e-5 per 3 hours), taken per epoch, which is stricter]",

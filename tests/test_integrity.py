@@ -44,6 +44,8 @@ def test_a_non_finite_covariance_has_no_level_and_a_bad_risk_is_refused():
         fusion.create("ekf", integrity_risk=0.0)
     with pytest.raises(ValueError, match="integrity_risk"):
         fusion.create("pf", integrity_risk=1.5)
+    with pytest.raises(ValueError, match="integrity_risk: Input should be a finite number"):  # not "less than 1"
+        fusion.create("ekf", integrity_risk=math.nan)
 
 
 def test_the_standard_figures_on_a_hand_counted_case():
@@ -67,7 +69,7 @@ def test_the_ekf_reports_a_level_that_its_covariance_gives():
     assert ekf.protection_level == pytest.approx(kappa(1e-3) * 2.0)
 
 
-@pytest.mark.parametrize("setting", ["integrity.alert_limit_m=0", "integrity.alert_limit_m=-3", "integrity.alert=10"])
+@pytest.mark.parametrize("setting", ["integrity.alert_limit_m=0", "integrity.alert_limit_m=-3", "integrity.alert_limit_m=nan", "integrity.alert=10"])
 def test_a_bad_alert_limit_is_one_line_and_exit_2(setting, tmp_path):
     result = CliRunner().invoke(app, ["run", "open_river", "--set", setting, "--out", str(tmp_path / "r")])
     assert result.exit_code == 2

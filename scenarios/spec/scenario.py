@@ -232,6 +232,7 @@ class IntegrityConfig(BaseModel):
     alert_limit_m: float = Field(
         10.0,
         gt=0,
+        allow_inf_nan=False,
         description="horizontal alert limit, m: an epoch whose protection level is below it is available; one whose error "
         "exceeds it while the level said below is hazardous [10 m: IMO Resolution A.1046(27)'s alert limit for inland "
         "waterways' navigation (10 m at 99.5 % accuracy 5 m) and for ports' approaches (25 m, 10 m accuracy)]",

@@ -17,6 +17,7 @@ import argparse
 import csv
 import json
 import statistics
+import sys
 import tempfile
 from pathlib import Path
 
@@ -30,7 +31,7 @@ ESTIMATORS = ("ekf", "pf", "gps_only", "hdop_switch")
 
 
 def truth(run: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(scenario time, x, y and the heading (rad) of groundtruth.tum, UNIX stamps as in the estimators' files."""
+    """(stamps, x y, heading in rad) of groundtruth.tum, on the UNIX clock of the estimators' TUM files."""
     gt = np.loadtxt(run / "groundtruth.tum", ndmin=2)
     qz, qw = gt[:, 6], gt[:, 7]
     return gt[:, 0], gt[:, 1:3], 2.0 * np.arctan2(qz, qw)
@@ -82,10 +83,14 @@ def main() -> None:
     parser.add_argument("--fast", action="store_true", help="the scenario's [fast] variant")
     args = parser.parse_args()
 
+    lags, held = [], 0
+    try:
+        rows = [measure(args.scenario, epoch, seed, args.fast) for epoch in args.epochs for seed in args.seeds]
+    except ValueError as exc:  # an unknown scenario, an epoch outside the ephemeris, a scenario without [fast]
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)
     print(f"{args.scenario}: mean error along / across the track (m) and APE p95 (m); rule: ekf <= min(gps_only, hdop_switch) + 0.10")
     print(f"{'epoch':22s} seed | fixes along across | ekf along across | gps_only along across | p95 ekf pf gps_only hdop | rule")
-    lags, held = [], 0
-    rows = [measure(args.scenario, epoch, seed, args.fast) for epoch in args.epochs for seed in args.seeds]
     for r in rows:
         (fa, fc), (ea, ec), (ga, gc) = r["fixes"], r["ekf"]["mean"], r["gps_only"]["mean"]
         p = {eid: r[eid]["p95"] if eid in r else float("nan") for eid in ESTIMATORS}

@@ -56,8 +56,7 @@ def params_model(name: str) -> type[BaseModel]:
 def validated(name: str, params: dict) -> BaseModel:
     """Monitor `name`'s parameters validated, a combined monitor's members and their parameters with them, so that a
     scenario can be checked before anything runs; a bad name, key or value is a one-line ValueError naming it."""
-    model = params_model(name)
-    p = validate_params(model, params, f"monitor '{name}'")
+    p = validate_params(params_model(name), params, f"monitor '{name}'")
     if isinstance(p, CombinedParams) and name in _MONITORS:
         nested = [m for m in p.members if m in _MONITORS and _MONITORS[m][0] is CombinedMonitor]
         if nested:

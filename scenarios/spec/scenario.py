@@ -160,11 +160,9 @@ class EstimatorSpec(BaseModel):
             raise ValueError(f"{where}: params.seed: every component takes the scenario's top-level seed; set 'seed' there")
         monitor = self.monitor or model.model_fields["monitor"].default
         try:  # a combined monitor's members' parameters too, which its own model keeps as plain tables
-            fusion.monitors.validated(monitor, self.monitor_params)
+            self.monitor_params = fusion.monitors.validated(monitor, self.monitor_params).model_dump(mode="json")
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
-        monitor_model = fusion.monitors.params_model(monitor)
-        self.monitor_params = _validated(monitor_model, self.monitor_params, f"{where} monitor {monitor!r}")
         self.monitor = monitor
         given = {"sensors": self.sensors} if self.sensors is not None else {}
         full = _validated(model, {**self.params, "monitor": monitor, "monitor_params": self.monitor_params, **given}, where)

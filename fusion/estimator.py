@@ -12,7 +12,7 @@ from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
 from fusion.geometry import drot2, is_psd, lidar_to_base, planar, pose_matrix, rot2
 from fusion.integrity import protection_level
 from fusion.monitors import FixContext, Monitor
-from fusion.observation import FixObservation, screen
+from fusion.observation import FixObservation, screen, screen_rule
 from fusion.odometry import OdometryTrack
 from fusion.params import EstimatorParams, InertialParams
 from fusion.verdict import Event, Verdict
@@ -122,7 +122,7 @@ class Estimator:
         stamp = getattr(fix, "stamp", math.nan)
         refused = self._refuse_stamp(stamp, "fix")
         if refused:
-            return Verdict(False, math.nan, refused)
+            return Verdict(False, math.nan, refused, rule="input.stamp")
         obs, why = screen(fix, self.params.uere_m, self.params.accept_dead_reckoning)
         self._advance(float(stamp))
         if obs is None:
@@ -130,7 +130,8 @@ class Estimator:
                 self.events.append(Event(float(stamp), "fix", why))
             self.monitor.note_outage(float(stamp))
             self._observe_outage()
-            return Verdict(False, math.inf if "dead reckoning" in why else math.nan, why)
+            rule = screen_rule(why)
+            return Verdict(False, math.inf if rule == "input.dead_reckoning" else math.nan, why, rule=rule)
         self._observe_fix(obs)
         if self.params.initial_pose is None:
             self._bootstrap.add(obs, self.odometry)

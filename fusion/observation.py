@@ -77,6 +77,20 @@ def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[Fi
     )
 
 
+SCREEN_RULES = (
+    ("bad field", "input.bad_field"),
+    ("no fix", "input.no_fix"),
+    ("receiver dead reckoning", "input.dead_reckoning"),
+    ("unsupported", "input.unsupported"),
+)
+"""The Verdict.rule of each reason `screen` gives (by its opening words)."""
+
+
+def screen_rule(why: str) -> str:
+    """The Verdict.rule of a reason `screen` gave for not using a fix."""
+    return next((rule for opening, rule in SCREEN_RULES if why.startswith(opening)), "input.other")
+
+
 def _finite(value: object) -> float:
     """A finite float, else NaN (a plugin's fix may carry anything in an optional field)."""
     try:

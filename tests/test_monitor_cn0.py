@@ -142,7 +142,7 @@ def test_an_nlos_fix_is_held_for_hold_s_as_the_receiver_filter_still_carries_it(
     snr = direct_cn0(el, rng)
     snr[1] -= 2 * NLOS_LOSS_DB
     flagged = feed(mon, make_fix(100.0, el, snr))
-    assert not flagged.trusted
+    assert not flagged.trusted and flagged.rule == "cn0.deficit"
     after = {round(0.2 * k, 1): feed(mon, make_fix(100.0 + 0.2 * k, el, direct_cn0(el, rng))) for k in range(1, 40)}
     for dt, verdict in after.items():
         if dt == hold_s:
@@ -150,9 +150,9 @@ def test_an_nlos_fix_is_held_for_hold_s_as_the_receiver_filter_still_carries_it(
         held = dt < hold_s
         assert verdict.trusted != held, (dt, verdict.reason)
         if held:
-            assert verdict.statistic == flagged.statistic and "within 6 s" in verdict.reason
+            assert verdict.statistic == flagged.statistic and "within 6 s" in verdict.reason and verdict.rule == "cn0.hold"
         else:
-            assert verdict.statistic < mon.gate
+            assert verdict.statistic < mon.gate and verdict.rule == ""
 
 
 @pytest.mark.parametrize("half_life_s", [4.0, None])

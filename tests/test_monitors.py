@@ -118,6 +118,7 @@ def test_window_test_cancels_a_constant_bias(bx, by, yaw):
             verdicts.append(mon.check(_obs(float(t), xy), ctx))
             mon.commit(_obs(float(t), xy), verdicts[-1])
         assert verdicts[0].trusted == verdicts[1].trusted == (t >= 5.0)  # start-up guard, then trusted
+        assert verdicts[0].rule == verdicts[1].rule == ("" if t >= 5.0 else "consistency.guard")  # the rule that refused it
         assert np.allclose(verdicts[0].statistic, verdicts[1].statistic, equal_nan=True, atol=1e-6)
 
 
@@ -260,12 +261,16 @@ def test_a_combined_verdict_is_on_its_own_evidence_only_when_every_refusal_is():
         def check(self, obs, ctx):
             return self.verdict
 
-    suspect = fusion.Verdict(False, 9.0, "weak", on_its_own=True)
-    disagrees = fusion.Verdict(False, 50.0, "jump", steady=False)
+    suspect = fusion.Verdict(False, 9.0, "weak", on_its_own=True, rule="cn0.deficit")
+    disagrees = fusion.Verdict(False, 50.0, "jump", rule="consistency.window", steady=False)
     both = CombinedMonitor(CombinedParams(), [Fixed(suspect), Fixed(disagrees)]).check(_obs(0.0, [0, 0]), None)
     assert not both.trusted and not both.on_its_own and not both.steady
+    assert both.rule == "cn0.deficit+consistency.window"  # every refusing member's rule, in member order
     alone = CombinedMonitor(CombinedParams(), [Fixed(suspect), Fixed(fusion.Verdict(True, 0.1, "ok"))]).check(_obs(0.0, [0, 0]), None)
-    assert not alone.trusted and alone.on_its_own and alone.steady
+    assert not alone.trusted and alone.on_its_own and alone.steady and alone.rule == "cn0.deficit"
+    unnamed = Fixed(fusion.Verdict(False, 1.0, "a plugin's"))
+    unnamed.name = "plugin"
+    assert CombinedMonitor(CombinedParams(), [unnamed]).check(_obs(0.0, [0, 0]), None).rule == "plugin"  # no rule: the member's name
 
 
 def _sky_fix(t: float, sats: list[tuple[float, float, bool]]) -> FixObservation:
@@ -291,9 +296,9 @@ def test_shadow_refuses_a_fix_that_uses_a_satellite_behind_a_wall_the_lidar_sees
 
     assert verdict(0.2, [(90.0, 35.0, True), (270.0, 15.0, True), (90.0, 15.0, False)]).trusted
     blocked = verdict(0.4, [(90.0, 15.0, True), (270.0, 15.0, True)])
-    assert not blocked.trusted and blocked.on_its_own and blocked.statistic == 1.0
+    assert not blocked.trusted and blocked.on_its_own and blocked.statistic == 1.0 and blocked.rule == "shadow.blocked"
     held = verdict(1.4, [(270.0, 15.0, True)])
-    assert not held.trusted and "ago" in held.reason
+    assert not held.trusted and "ago" in held.reason and held.rule == "shadow.hold"
     assert verdict(2.6, [(270.0, 15.0, True)]).trusted
     mon.reset()  # a re-lock: the map was placed with a pose that was astray
     assert verdict(3.0, [(90.0, 15.0, True)]).trusted

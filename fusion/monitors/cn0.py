@@ -336,7 +336,9 @@ class Cn0Monitor(Monitor):
         held = [d for t, d, shift in self._recent if obs.stamp - self.params.hold_s <= t < obs.stamp and self._still_carried(shift, obs.stamp - t)]
         statistic = max([deficit, *held])
         if deficit > self.gate:
-            return Verdict(False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note, on_its_own=True)
+            return Verdict(
+                False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note, on_its_own=True, rule="cn0.deficit"
+            )
         if statistic > self.gate:
             return Verdict(
                 False,
@@ -344,6 +346,7 @@ class Cn0Monitor(Monitor):
                 f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s "
                 "(the receiver's filter still carries it)" + note,
                 on_its_own=True,
+                rule="cn0.hold",
             )
         return Verdict(True, statistic, "C/N0 consistent with a direct signal" + note)
 

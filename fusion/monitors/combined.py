@@ -68,7 +68,8 @@ class CombinedMonitor(Monitor):
         refused = [f"{m.name}: {v.reason}" for m, v in zip(self.members, verdicts) if not v.trusted]
         if refused:
             on_its_own = all(v.on_its_own for v in verdicts if not v.trusted)  # a member that disagrees with the filter speaks for divergence
-            return Verdict(False, statistic, "; ".join(refused), on_its_own=on_its_own, steady=all(v.steady for v in verdicts))
+            rule = "+".join(v.rule or m.name for m, v in zip(self.members, verdicts) if not v.trusted)
+            return Verdict(False, statistic, "; ".join(refused), on_its_own=on_its_own, rule=rule, steady=all(v.steady for v in verdicts))
         return Verdict(True, statistic, "all members trust it", steady=all(v.steady for v in verdicts))
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:

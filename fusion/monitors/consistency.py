@@ -219,9 +219,11 @@ class ConsistencyMonitor(Monitor):
         in_guard = guard_from is not None and (obs.stamp - guard_from < self.params.guard_s or passes < self.params.guard_n)
         if tests and statistic > self.gate:
             which = "window" if window_d2 == statistic else "reference"
-            return Verdict(False, statistic, f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}", steady=steady)
+            why = f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}"
+            return Verdict(False, statistic, why, rule=f"consistency.{which}", steady=steady)
         if in_guard:
-            return Verdict(False, statistic, f"re-acquisition guard ({passes}/{self.params.guard_n} consistent)", steady=steady)
+            why = f"re-acquisition guard ({passes}/{self.params.guard_n} consistent)"
+            return Verdict(False, statistic, why, rule="consistency.guard", steady=steady)
         if not tests:
             return Verdict(True, statistic, "unchecked: no odometry or reference to compare", steady=steady)
         return Verdict(True, statistic, "displacement consistent", steady=steady)

@@ -26,5 +26,5 @@ class HdopMonitor(Monitor):
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         if obs.hdop > self.params.max_hdop:
-            return Verdict(False, obs.hdop, f"HDOP {obs.hdop:.2f} > {self.params.max_hdop:g}", on_its_own=True)
+            return Verdict(False, obs.hdop, f"HDOP {obs.hdop:.2f} > {self.params.max_hdop:g}", on_its_own=True, rule="hdop.gate")
         return Verdict(True, obs.hdop, "HDOP ok")

@@ -30,12 +30,12 @@ class NisMonitor(Monitor):
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         if ctx.predicted is None:
-            return Verdict(False, float("nan"), "filter not initialised")
+            return Verdict(False, float("nan"), "filter not initialised", rule="nis.uninitialised")
         mean, cov, noise = ctx.predicted
         y = obs.xy - mean
         nis = mahalanobis2(y, cov + noise)
         if math.isnan(nis):
-            return Verdict(False, nis, "NIS undefined (filter covariance not finite)")
+            return Verdict(False, nis, "NIS undefined (filter covariance not finite)", rule="nis.undefined")
         if nis > self.gate:
-            return Verdict(False, nis, f"NIS {nis:.1f} > gate {self.gate:.1f}")
+            return Verdict(False, nis, f"NIS {nis:.1f} > gate {self.gate:.1f}", rule="nis.gate")
         return Verdict(True, nis, "NIS ok")

@@ -73,13 +73,13 @@ class ShadowMonitor(Monitor):
         count = float(blocked.sum())
         self._pending = (obs.stamp, named)
         if count:
-            return Verdict(False, count, f"the LiDAR sees {int(count)} used satellite(s) blocked: {named}", on_its_own=True)
+            return Verdict(False, count, f"the LiDAR sees {int(count)} used satellite(s) blocked: {named}", on_its_own=True, rule="shadow.blocked")
         while self._recent and self._recent[0][0] < obs.stamp - self.params.hold_s:
             self._recent.popleft()
         if self._recent:
             stamp, held = self._recent[-1]
             why = f"a used satellite was blocked {obs.stamp - stamp:.1f} s ago ({held}; the receiver's filter still carries it)"
-            return Verdict(False, 0.0, why, on_its_own=True)
+            return Verdict(False, 0.0, why, on_its_own=True, rule="shadow.hold")
         return Verdict(True, 0.0, "no used satellite behind what the LiDAR sees")
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:

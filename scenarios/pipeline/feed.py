@@ -214,7 +214,11 @@ class Feed:
         verdicts = self._each_estimator(lambda eid, est: checked_verdict(est.add_fix(fix)), fix.stamp, "gnss")
         # a failed estimator (or one not fed GPS) raises no alarm: its fixes count as trusted with no statistic
         self.recorder.fix(
-            fix, {eid: (verdicts[eid].trusted, verdicts[eid].statistic) if eid in verdicts else (True, math.nan) for eid in self.estimators}
+            fix,
+            {
+                eid: (verdicts[eid].trusted, verdicts[eid].statistic, refusing_rule(verdicts[eid])) if eid in verdicts else (True, math.nan, "")
+                for eid in self.estimators
+            },
         )
         if self.log_fix is not None:
             self.log_fix(event)
@@ -249,6 +253,11 @@ def checked_level(level) -> float:
         return float(level)
     except (TypeError, ValueError):
         raise TypeError(f"protection_level is a {type(level).__name__}, not a number") from None
+
+
+def refusing_rule(verdict: Verdict) -> str:
+    """The rule a refused fix is recorded under: the verdict's, or "unnamed" when a plugin's monitor gave none; "" when trusted."""
+    return "" if verdict.trusted else verdict.rule or "unnamed"
 
 
 def checked_verdict(verdict) -> Verdict:

@@ -80,12 +80,13 @@ def read_tum(path: Path, scenario_time: bool = False) -> np.ndarray:
 
 def write_gps_csv(path: Path, rec: RunRecord, truth: bool = True) -> None:
     """One row per fix: time, reported position, quality, DOP, the true error (not when `truth` is False: a replay
-    has none), and each estimator's verdict."""
+    has none), and each estimator's verdict: trusted, statistic and the rule that refused it (empty where trusted)."""
     f = rec.fixes
     eids = list(f.trusted)
     header = ["t", "quality", "e", "n", "u", "lat", "lon", "alt", "num_sats", "hdop"]
     header += ["err_e", "err_n", "err_u", "err_h", "open_sky_err_h", "added_err_h", "nlos_used"] if truth else []
-    header += [f"{e}.{k}" for e in eids for k in ("trusted", "statistic")]
+    header += [f"{e}.{k}" for e in eids for k in ("trusted", "statistic", "rule")]
+    rules = {e: f.rule.get(e, np.full(len(f.t), "")) for e in eids}
     err_h, added = f.horizontal_error, f.added_error
     open_sky = np.hypot(f.open_sky_error[:, 0], f.open_sky_error[:, 1]) if len(f.t) else np.zeros(0)
     with open(path, "w", newline="") as handle:
@@ -105,7 +106,7 @@ def write_gps_csv(path: Path, rec: RunRecord, truth: bool = True) -> None:
             if truth:
                 row += [*_fmt(f.error[i], 3), _fmt1(err_h[i], 3), _fmt1(open_sky[i], 3), _fmt1(added[i], 3), int(f.nlos_used[i])]
             for e in eids:
-                row += [int(f.trusted[e][i]), _fmt1(f.statistic[e][i], 4)]
+                row += [int(f.trusted[e][i]), _fmt1(f.statistic[e][i], 4), rules[e][i]]
             w.writerow(row)
 
 

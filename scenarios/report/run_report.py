@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import json
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from riverbench.atomic import atomic_path
 from scenarios.report import plots, vessel_plot, world_map
 from scenarios.report.document import NULL, Cell, Column, Heading, Image, Table, Text, get, metres, num, ranked_table, share, to_html, to_markdown
+from scenarios.report.refusals import refusals
 from scenarios.score import units
 
 
@@ -29,6 +30,8 @@ class Context:
     images: dict[str, str]
     t0: float
     windows: dict
+    fixes: dict = field(default_factory=dict)
+    """gps.csv's columns (empty: no fixes to count refusals in)."""
 
 
 def write(run_dir: Path, scenario=None) -> None:
@@ -43,7 +46,7 @@ def write(run_dir: Path, scenario=None) -> None:
     images = plots.write_all(series, run_dir / "plots")
     vessel_node = metrics.get("vessel", {})
     images |= vessel_plot.write(run_dir, float(vessel_node.get("clearance_threshold_m") or 0.0), vessel_node)
-    ctx = Context(metrics, info, images, series.t0, plots.read_csv(run_dir / "windows.csv"))
+    ctx = Context(metrics, info, images, series.t0, plots.read_csv(run_dir / "windows.csv"), series.gps)
     blocks = build(ctx)
     for name, text in (("report.md", to_markdown(blocks)), ("report.html", to_html(blocks, run_dir, title=f"riverbench: {name_of(ctx)}"))):
         with atomic_path(run_dir / name) as tmp:
@@ -335,7 +338,7 @@ def estimators(ctx: Context) -> list:
     if columns:
         note = " ".join([*notes, "Bold: best in its column."])
         blocks += [Heading(3, "Through GPS degradation"), ranked_table("estimator", nodes, columns, labels, note)]
-    return blocks + integrity(ctx)
+    return blocks + refusals(ctx.fixes, list(nodes)) + integrity(ctx)
 
 
 def integrity(ctx: Context) -> list:

@@ -43,6 +43,8 @@ class FixTable:
     nlos_used: np.ndarray
     trusted: dict[str, np.ndarray]
     statistic: dict[str, np.ndarray]
+    rule: dict[str, np.ndarray] = field(default_factory=dict)
+    """Per estimator, the rule that refused each fix (fusion.Verdict.rule; "" where trusted)."""
 
     @property
     def measured(self) -> np.ndarray:
@@ -128,6 +130,7 @@ class Recorder:
         self.fix_rows: dict[str, Column] = {}
         self.heading_rows: dict[str, Column] = {}
         self.failures: list[dict] = []
+        self._rules: dict[str, int] = {"": 0}  # each refusing rule seen, by its index in the fix rows (few distinct ones)
         self._lidar_at: dict[str, dict[float, np.ndarray]] = {m: {} for m in matcher_ids}
         self._latest_ref: dict[str, np.ndarray | None] = {m: None for m in matcher_ids}
 
@@ -178,8 +181,8 @@ class Recorder:
         self._latest_ref[mid] = lidar
         return lidar @ self.mount_inv
 
-    def fix(self, fix: GnssFix, verdicts: dict[str, tuple[bool, float]]) -> None:
-        """One receiver epoch with each estimator's (trusted, statistic)."""
+    def fix(self, fix: GnssFix, verdicts: dict[str, tuple[bool, float, str]]) -> None:
+        """One receiver epoch with each estimator's (trusted, statistic, the rule that refused it or "")."""
         add = lambda k, v: self._add(self.fix_rows, k, v)
         truth = fix.truth
         nan3 = np.full(3, np.nan)
@@ -195,9 +198,10 @@ class Recorder:
         add("open_sky_error", np.asarray(truth.open_sky_error, dtype=float) if truth is not None else nan3)
         nlos = {(s.system, s.prn) for s in truth.sats if s.nlos} if truth is not None else set()
         add("nlos_used", bool(fix.quality in POSITION_QUALITIES and any(s.used and (s.system, s.prn) in nlos for s in fix.sats)))
-        for eid, (trusted, statistic) in verdicts.items():
+        for eid, (trusted, statistic, rule) in verdicts.items():
             add(f"trusted:{eid}", bool(trusted))
             add(f"stat:{eid}", float(statistic))
+            add(f"rule:{eid}", self._rules.setdefault(str(rule), len(self._rules)))
 
     def heading(self, stamp: float, measured: float, truth: float, used: dict[str, bool]) -> None:
         """One compass output: its heading, the true heading and whether each estimator fed it used it."""
@@ -241,6 +245,7 @@ class Recorder:
             nlos_used=col(f, "nlos_used", dtype=bool),
             trusted={e: col(f, f"trusted:{e}", dtype=bool) for e in self.estimator_ids},
             statistic={e: col(f, f"stat:{e}") for e in self.estimator_ids},
+            rule={e: np.array(list(self._rules), dtype=str)[col(f, f"rule:{e}", dtype=int)] for e in self.estimator_ids},
         )
         return RunRecord(
             scan_t=col(s, "t"),

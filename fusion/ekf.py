@@ -205,11 +205,12 @@ class Ekf(Estimator):
         H = np.zeros((2, self.n))
         H[:, X : Y + 1] = np.eye(2)
         H[:, TH] = drot2(th) @ self.lever
+        allowance = np.eye(2) * obs.allowance_m**2  # what a monitor could not rule out (fusion.Verdict.allowance_m)
         if not self._correlated():
-            return h, H, obs.cov
+            return h, H, obs.cov + allowance
         h = h + self.x[BIAS]
         H[:, BIAS] = np.eye(2)
-        return h, H, np.eye(2) * self.params.gps_white_sigma_m**2
+        return h, H, np.eye(2) * self.params.gps_white_sigma_m**2 + allowance
 
     def _observe_fix(self, obs: FixObservation) -> None:
         """The receiver's error variance follows its HDOP: the bias is rescaled to it (see _set_bias_level)."""

@@ -12,7 +12,7 @@ from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
 from fusion.geometry import drot2, is_psd, lidar_to_base, planar, pose_matrix, rot2
 from fusion.integrity import protection_level
 from fusion.monitors import FixContext, Monitor
-from fusion.observation import FixObservation, screen, screen_rule
+from fusion.observation import FixObservation, allowing, screen, screen_rule
 from fusion.odometry import OdometryTrack
 from fusion.params import EstimatorParams, InertialParams
 from fusion.verdict import Event, Verdict
@@ -143,7 +143,7 @@ class Estimator:
         verdict = self.monitor.check(obs, ctx)
         self.monitor.commit(obs, verdict)
         try:
-            self._use_fix(obs, verdict)
+            self._use_fix(allowing(obs, verdict.allowance_m) if verdict.trusted else obs, verdict)
         except np.linalg.LinAlgError as err:  # a numerically broken update: skip it, keep running
             self.events.append(Event(obs.stamp, "fix", f"GPS update failed: {err}"))
         self._watch_lock(obs, verdict)

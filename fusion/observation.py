@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -30,6 +30,9 @@ class FixObservation:
     sats: tuple[SatelliteReport, ...] = ()
     speed_mps: float = math.nan
     course_deg: float = math.nan
+    allowance_m: float = 0.0
+    """Error a monitor could not rule out in this trusted fix (fusion.Verdict.allowance_m), m, 1 sigma per horizontal axis:
+    the filters add its square to the fix's measurement noise (0: none)."""
 
     @property
     def ground_velocity(self) -> np.ndarray | None:
@@ -75,6 +78,13 @@ def screen(fix: GnssFix, uere_m: float, accept_dead_reckoning: bool) -> tuple[Fi
         ),
         "",
     )
+
+
+def allowing(obs: FixObservation, allowance_m: float) -> FixObservation:
+    """The fix carrying a monitor's allowance (Verdict.allowance_m, 1 sigma per horizontal axis) for the filters' update."""
+    if not allowance_m > 0:
+        return obs
+    return replace(obs, allowance_m=float(allowance_m))
 
 
 SCREEN_RULES = (

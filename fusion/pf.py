@@ -217,11 +217,11 @@ class Pf(Estimator):
         nu = self.params.gps_dof
         if not self._correlated():
             r = obs.xy - self._antennas()
-            d2 = np.einsum("ni,ij,nj->n", r, np.linalg.inv(obs.cov), r)
+            d2 = np.einsum("ni,ij,nj->n", r, np.linalg.inv(obs.cov + np.eye(2) * obs.allowance_m**2), r)
             self.logw += -0.5 * (nu + 2.0) * np.log1p(d2 / nu)
             self._after_weighting()
             return
-        S = self.bias_cov + np.eye(2) * self.params.gps_white_sigma_m**2
+        S = self.bias_cov + np.eye(2) * (self.params.gps_white_sigma_m**2 + obs.allowance_m**2)
         S_inv = np.linalg.inv(S)
         r = obs.xy - self._antennas() - self.bias
         d2 = np.einsum("ni,ij,nj->n", r, S_inv, r)

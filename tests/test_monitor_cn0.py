@@ -180,6 +180,34 @@ def test_a_held_fault_counts_while_its_halving_effect_could_still_move_the_fix_b
             assert verdict.trusted == (dt > carried_s), (dt, verdict.reason)
 
 
+def test_with_hold_allowance_a_held_fix_is_trusted_allowing_what_the_fault_could_still_move_it():
+    """Analytic: a suspect that could move the fix by 10 m; with hold_allowance the fix carrying it is still refused (its
+    own satellite is low), the held ones after it are trusted with an allowance of 10 m x 0.5^(age / 4 s) (the receiver
+    filter's half-life), named cn0.hold, until the 6 s hold ends; then trusted outright."""
+    from fusion.monitors.cn0 import RECEIVER_HALF_LIFE_S
+    from fusion.monitors.satellite_geometry import horizontal_slopes
+
+    el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
+    az = (np.arange(len(el)) * 137.5) % 360.0  # make_fix's azimuths
+    slope = horizontal_slopes(el, az, ["GPS"] * len(el))[1]
+    mon = monitors.create("cn0", hold_s=6.0, hold_allowance=True, nlos_bias_m=10.0 / slope)
+    rng = np.random.default_rng(9)
+    for t, e, snr in clean_epochs(rng, 400):
+        feed(mon, make_fix(t, e, snr))
+    snr = direct_cn0(el, rng)
+    snr[1] -= 2 * NLOS_LOSS_DB
+    flagged = feed(mon, make_fix(100.0, el, snr))
+    assert not flagged.trusted and flagged.rule == "cn0.deficit" and flagged.allowance_m == 0.0
+    for k in range(1, 40):
+        dt = round(0.2 * k, 1)
+        verdict = feed(mon, make_fix(100.0 + dt, el, direct_cn0(el, rng)))
+        assert verdict.trusted, (dt, verdict.reason)
+        if dt < 6.0 - 1e-9:
+            assert verdict.rule == "cn0.hold" and verdict.allowance_m == pytest.approx(10.0 * 0.5 ** (dt / RECEIVER_HALF_LIFE_S), rel=1e-9)
+        elif dt > 6.0 + 1e-9:
+            assert verdict.rule == "" and verdict.allowance_m == 0.0
+
+
 def test_learning_survives_nlos_in_the_training_data():
     mon = warmed(seed=4, nlos_share=0.15)
     rng = np.random.default_rng(5)

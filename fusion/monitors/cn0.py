@@ -99,6 +99,9 @@ from fusion.monitors.satellite_geometry import horizontal_slopes
 from fusion.observation import FixObservation
 from fusion.verdict import Verdict
 
+RECEIVER_HALF_LIFE_S = 4.0
+"""A consumer receiver's position filter halves a raw fault's effect on its output in about this long, s (hold_s's
+figure): the decay of a held fault's allowance when hold_half_life_s is not set."""
 REFERENCE = "GPS L1 C/A"
 """The signal every offset is relative to (a GPS-only receiver's only one)."""
 MAD_TO_SIGMA = float(1.0 / norm.ppf(0.75))
@@ -182,6 +185,16 @@ class Cn0Params(BaseModel):
         "down on 12, charles_river 0.145 -> 0.097) but in the fused ekf it releases the hold onto a receiver's NLOS ramp "
         "still within 5 m, whose speed the filter then carries through the next outage (dam_lock_inertial seed 0 APE "
         "max 3.78 -> 4.77 m; quickstart seed 4 APE p95 5.39 -> 5.77 m), so it is off by default; docs/models.md]",
+    )
+
+    hold_allowance: bool = Field(
+        False,
+        description="a fix refused only by the hold (its own used satellites look direct) is trusted with an allowance "
+        "instead: what the held suspects could still move it by (their shift at nlos_bias_m, halved every "
+        "hold_half_life_s, RECEIVER_HALF_LIFE_S = 4 s when that is unset), which the host adds to the fix's covariance, "
+        "so it weighs in only where the filter is less sure than that (after a blackout on degenerate odometry) and "
+        "barely moves a confident one [False: refused for the hold, as before; docs/models.md 'Which test refuses the "
+        "good fixes']",
     )
 
     nlos_bias_m: float = Field(
@@ -333,13 +346,18 @@ class Cn0Monitor(Monitor):
         deficit, sigma, named, note, _ = self._judged[1]
         if sigma is None:
             return Verdict(True, math.nan, note)
-        held = [d for t, d, shift in self._recent if obs.stamp - self.params.hold_s <= t < obs.stamp and self._still_carried(shift, obs.stamp - t)]
-        statistic = max([deficit, *held])
+        recent = [(d, shift, obs.stamp - t) for t, d, shift in self._recent if obs.stamp - self.params.hold_s <= t < obs.stamp]
+        held = [(d, shift, age) for d, shift, age in recent if self._still_carried(shift, age)]
+        statistic = max([deficit, *(d for d, _, _ in held)])
         if deficit > self.gate:
             return Verdict(
                 False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note, on_its_own=True, rule="cn0.deficit"
             )
         if statistic > self.gate:
+            allowance = max(self._carried(shift, age) for d, shift, age in held if d > self.gate)
+            if self.params.hold_allowance and math.isfinite(allowance):
+                why = f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s: trusted, allowing {allowance:.1f} m"
+                return Verdict(True, statistic, why + note, rule="cn0.hold", allowance_m=allowance)
             return Verdict(
                 False,
                 statistic,
@@ -349,6 +367,11 @@ class Cn0Monitor(Monitor):
                 rule="cn0.hold",
             )
         return Verdict(True, statistic, "C/N0 consistent with a direct signal" + note)
+
+    def _carried(self, shift: float, age_s: float) -> float:
+        """How far a held fault (its suspects could move the fix `shift` m) may still move the receiver's output `age_s`
+        later, m: halved every hold_half_life_s (RECEIVER_HALF_LIFE_S when unset)."""
+        return shift * 0.5 ** (age_s / (self.params.hold_half_life_s or RECEIVER_HALF_LIFE_S))
 
     def _still_carried(self, shift: float, age_s: float) -> bool:
         """Whether a held fault (its suspects could move the fix `shift` m) may still move the receiver's output by more

@@ -70,6 +70,12 @@ class CombinedMonitor(Monitor):
             on_its_own = all(v.on_its_own for v in verdicts if not v.trusted)  # a member that disagrees with the filter speaks for divergence
             rule = "+".join(v.rule or m.name for m, v in zip(self.members, verdicts) if not v.trusted)
             return Verdict(False, statistic, "; ".join(refused), on_its_own=on_its_own, rule=rule, steady=all(v.steady for v in verdicts))
+        allowed = [(m, v) for m, v in zip(self.members, verdicts) if v.allowance_m > 0]
+        if allowed:  # independent allowances add in quadrature
+            allowance = math.sqrt(sum(v.allowance_m**2 for _, v in allowed))
+            rule = "+".join(v.rule or m.name for m, v in allowed)
+            reason = "; ".join(f"{m.name}: {v.reason}" for m, v in allowed)
+            return Verdict(True, statistic, reason, rule=rule, allowance_m=allowance, steady=all(v.steady for v in verdicts))
         return Verdict(True, statistic, "all members trust it", steady=all(v.steady for v in verdicts))
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:

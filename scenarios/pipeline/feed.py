@@ -256,8 +256,11 @@ def checked_level(level) -> float:
 
 
 def refusing_rule(verdict: Verdict) -> str:
-    """The rule a refused fix is recorded under: the verdict's, or "unnamed" when a plugin's monitor gave none; "" when trusted."""
-    return "" if verdict.trusted else verdict.rule or "unnamed"
+    """The rule a fix is recorded under: a refused one's, or "unnamed" when a plugin's monitor gave none; a fix trusted
+    with an allowance, the rule that gave it; "" when trusted outright."""
+    if verdict.trusted:
+        return verdict.rule if verdict.allowance_m > 0 else ""
+    return verdict.rule or "unnamed"
 
 
 def checked_verdict(verdict) -> Verdict:

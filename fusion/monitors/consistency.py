@@ -9,7 +9,7 @@ world by the filter's heading with its variance):
   carries between fixes (a small Kalman filter of its own, independent of the host filter), so a
   bias that persists after its onset stays flagged and one leaked fix barely moves the reference.
   Without a trusted fix for `reference_max_age_s` the reference is dropped and rebuilt.
-Guard: after a stretch of at least `gap_s` without a measured fix (a blackout, or start-up), the
+Guard: after a stretch of at least `gap_s` without a measured fix (a blackout; start-up too with `startup_guard`), the
 receiver's own filter may carry a wrong estimate that it smooths back slowly; fixes stay
 untrusted for at least `guard_s` and until `guard_n` consecutive fixes pass both tests at the
 tighter `guard_gate_prob` gate (the receiver's track moves with the odometry again and agrees with
@@ -70,6 +70,16 @@ class ConsistencyParams(BaseModel):
         2.0, gt=0, description="a stretch at least this long without a measured fix (a blackout, or start-up) starts the guard, s [2]"
     )
     guard_s: float = Field(5.0, ge=0, description="fixes stay untrusted for at least this long after such a gap, s [5]")
+    startup_guard: bool = Field(
+        False,
+        description="the guard also runs from the first fix and after a reset (the host's re-lock) [False: only after an "
+        "outage, where the host carries a dead-reckoned position of its own that a receiver's walk-back could drag away. "
+        "At start-up the host has none: it initialises on the fixes whatever the verdict (fusion.bootstrap), so the "
+        "guard refused only fixes it could not use yet (library [fast], seed 0: every trajectory byte-identical with and "
+        "without it) and a receiver converging after acquisition walks towards the truth; it was 4-14% of each "
+        "stretch's good fixes, a quarter of the ekf's false alarms; docs/models.md 'Which test refuses the good fixes'. "
+        "True: as before]",
+    )
     guard_n: int = Field(
         5, ge=0, description="during the guard, fixes also stay untrusted until this many consecutive ones pass both tests under the guard gate [5]"
     )
@@ -195,7 +205,10 @@ class ConsistencyMonitor(Monitor):
         return best
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
-        gap = self._last_measured is None or obs.stamp - self._last_measured >= self.params.gap_s
+        if self._last_measured is None:
+            gap = self.params.startup_guard
+        else:
+            gap = obs.stamp - self._last_measured >= self.params.gap_s
         # window test against a trusted fix (for the verdict) and against any fix (for the guard)
         trusted_ref = None if gap else self._window_reference(obs.stamp, anchors_only=True)
         any_ref = None if gap else self._window_reference(obs.stamp, anchors_only=False)

@@ -72,7 +72,7 @@ def refusals(gps: dict[str, np.ndarray], eids: list[str]) -> list:
     if not rows:
         return []
     note = (
-        f"Measured fixes each estimator refused, by the rule that refused them (gps.csv's <id>.rule; `a+b`: both members of "
+        f"Measured fixes each estimator refused, by the rule that refused them (gps.csv's <id>.rule; a+b: both members of "
         f"a combined monitor refused): false alarms, the fixes the environment moved by {FAULT_M:g} m or less, with their "
         f"share of all such fixes (the rules' shares add up to the false-alarm rate above); caught, those it moved more."
     )

@@ -62,6 +62,7 @@ class Estimator:
             fyaw = math.radians(self.inertial.odom_floor_sigma_yaw_deg)
         self._odom_floor = np.diag([fxy**2, fxy**2, fyaw**2])
         self._refused_since: float | None = None  # first refused fix of an unbroken refused run
+        self._own_start = params.initial_pose is not None  # started from a given pose, not the fixes (FixContext.own_start)
         self._ref_stamp: float | None = None
         self._last_measured: float | None = None
         self._gyro_rate: float | None = None  # the latest measured yaw rate (rad/s): yaw follows the gyro once it is set
@@ -189,6 +190,7 @@ class Estimator:
                 self._relock(obs)
             self.monitor.reset()
             self._refused_since = None
+            self._own_start = False
 
     def _observe_outage(self) -> None:
         """An epoch without a measured position (filters with a GPS error model may relax it)."""
@@ -497,6 +499,7 @@ class Estimator:
             velocity=None if heading is None or body is None else rot2(heading[0]) @ body,
             velocity_cov=self._world_velocity_cov(heading, body),
             antenna=(self._level_pose() @ np.r_[self.antenna, 1.0])[:3] if self.initialized else None,
+            own_start=self._own_start,
         )
 
     def _advance(self, stamp: float) -> None:

@@ -124,7 +124,8 @@ def test_window_test_cancels_a_constant_bias(bx, by, yaw):
 
 def test_without_the_start_up_guard_the_first_fixes_are_judged_and_an_outage_still_starts_the_guard():
     """startup_guard=False (the default): on a straight run at 2 m/s with fixes on the truth, the fixes are trusted from the first one
-    (no window or reference to test yet, then both pass); a 3 s gap in the fixes still starts the guard for guard_s."""
+    (no window or reference to test yet, then both pass); a 3 s gap in the fixes still starts the guard for guard_s, and
+    so does the first fix of a host that started from a given pose (FixContext.own_start)."""
     track = OdometryTrack()
     for t in np.arange(0.0, 30.0, 0.1):
         track.add(float(t), np.array([0.2, 0.0, 0.0]), np.diag([1e-4, 1e-4, 1e-6]))
@@ -138,6 +139,15 @@ def test_without_the_start_up_guard_the_first_fixes_are_judged_and_an_outage_sti
     assert all(v.trusted for t, v in verdicts.items() if t < 10.0)
     assert all(not v.trusted and v.rule == "consistency.guard" for t, v in verdicts.items() if 13.0 <= t < 17.9)
     assert all(v.trusted for t, v in verdicts.items() if t >= 18.1)
+    # a host that started from a given pose holds a position of its own from the first fix: guarded from there
+    own = monitors.create("consistency", startup_guard=False)
+    own_ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, own_start=True)
+    first = []
+    for t in np.arange(0.0, 8.0, 0.2):
+        obs = _obs(float(t), [2.0 * t, 0.0])
+        first.append((round(float(t), 1), v := own.check(obs, own_ctx)))
+        own.commit(obs, v)
+    assert all(not v.trusted for t, v in first if t < 4.9) and all(v.trusted for t, v in first if t >= 5.1)
 
 
 def test_registry_validates_names_and_parameters():

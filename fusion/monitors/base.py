@@ -20,7 +20,8 @@ class FixContext:
     lever: antenna (x, y) on base_link; odometry: the scan-matching chain; correlation_s: the
     receiver's error time constant (see EstimatorParams.gps_correlation_s); velocity: the filter's horizontal
     velocity of base_link in the world, m/s (None before initialisation, or for a filter without one); velocity_cov: its
-    2x2 covariance, (m/s)^2, with the heading's share (None where the filter keeps none).
+    2x2 covariance, (m/s)^2, with the heading's share (None where the filter keeps none); own_start: the filter started
+    from a position of its own (a given initial pose), not from the fixes, and no re-lock has moved it onto one since.
     """
 
     predicted: tuple[np.ndarray, np.ndarray, np.ndarray] | None
@@ -32,6 +33,7 @@ class FixContext:
     velocity: np.ndarray | None = None
     antenna: np.ndarray | None = None
     velocity_cov: np.ndarray | None = None
+    own_start: bool = False
 
 
 def mahalanobis2(r: np.ndarray, cov: np.ndarray) -> float:

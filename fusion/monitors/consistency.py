@@ -73,8 +73,9 @@ class ConsistencyParams(BaseModel):
     startup_guard: bool = Field(
         False,
         description="the guard also runs from the first fix and after a reset (the host's re-lock) [False: only after an "
-        "outage, where the host carries a dead-reckoned position of its own that a receiver's walk-back could drag away. "
-        "At start-up the host has none: it initialises on the fixes whatever the verdict (fusion.bootstrap), so the "
+        "outage, or from the first fix when the host started from a given pose (FixContext.own_start), where it carries "
+        "a position of its own that a receiver's walk-back could drag away. Otherwise at start-up it has none: it "
+        "initialises on the fixes whatever the verdict (fusion.bootstrap), so the "
         "guard refused only fixes it could not use yet (library [fast], seed 0: every trajectory byte-identical with and "
         "without it) and a receiver converging after acquisition walks towards the truth; it was 4-14% of each "
         "stretch's good fixes, a quarter of the ekf's false alarms; docs/models.md 'Which test refuses the good fixes'. "
@@ -205,8 +206,8 @@ class ConsistencyMonitor(Monitor):
         return best
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
-        if self._last_measured is None:
-            gap = self.params.startup_guard
+        if self._last_measured is None:  # start-up: guarded when the host holds a position of its own (a given pose)
+            gap = self.params.startup_guard or ctx.own_start
         else:
             gap = obs.stamp - self._last_measured >= self.params.gap_s
         # window test against a trusted fix (for the verdict) and against any fix (for the guard)

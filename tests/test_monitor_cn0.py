@@ -155,22 +155,28 @@ def test_an_nlos_fix_is_held_for_hold_s_as_the_receiver_filter_still_carries_it(
             assert verdict.statistic < mon.gate and verdict.rule == ""
 
 
-@pytest.mark.parametrize("half_life_s", [4.0, None])
-def test_a_held_fault_counts_while_its_halving_effect_could_still_move_the_fix_by_a_fault(half_life_s):
-    """Analytic: a suspect that could move the fix by 10 m (nlos_bias_m x its slope) is held while 10 m x 0.5^(age /
-    half-life) > fault_m 5 m, i.e. for one half-life (4 s of the 6 s hold); without a half-life for the whole hold."""
+def _ten_metre_suspect(**params):
+    """A cn0 monitor (hold_s 6 s, `params`) warmed on clean epochs, then fed a fix whose 35 deg satellite is reflected and
+    could move it by 10 m (nlos_bias_m x its slope): (the monitor, the elevations, the rng, the verdict on that fix)."""
     from fusion.monitors.satellite_geometry import horizontal_slopes
 
     el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
     az = (np.arange(len(el)) * 137.5) % 360.0  # make_fix's azimuths
     slope = horizontal_slopes(el, az, ["GPS"] * len(el))[1]
-    mon = monitors.create("cn0", hold_s=6.0, hold_half_life_s=half_life_s, nlos_bias_m=10.0 / slope, fault_m=5.0)
+    mon = monitors.create("cn0", hold_s=6.0, nlos_bias_m=10.0 / slope, **params)
     rng = np.random.default_rng(9)
     for t, e, snr in clean_epochs(rng, 400):
         feed(mon, make_fix(t, e, snr))
     snr = direct_cn0(el, rng)
     snr[1] -= 2 * NLOS_LOSS_DB
-    flagged = feed(mon, make_fix(100.0, el, snr))
+    return mon, el, rng, feed(mon, make_fix(100.0, el, snr))
+
+
+@pytest.mark.parametrize("half_life_s", [4.0, None])
+def test_a_held_fault_counts_while_its_halving_effect_could_still_move_the_fix_by_a_fault(half_life_s):
+    """Analytic: a suspect that could move the fix by 10 m (nlos_bias_m x its slope) is held while 10 m x 0.5^(age /
+    half-life) > fault_m 5 m, i.e. for one half-life (4 s of the 6 s hold); without a half-life for the whole hold."""
+    mon, el, rng, flagged = _ten_metre_suspect(hold_half_life_s=half_life_s, fault_m=5.0)
     assert not flagged.trusted and "can move the fix 10.0 m" in flagged.reason
     carried_s = 6.0 if half_life_s is None else half_life_s  # 10 x 0.5^(age / half-life) = 5 at one half-life
     for k in range(1, 40):
@@ -185,18 +191,8 @@ def test_with_hold_allowance_a_held_fix_is_trusted_allowing_what_the_fault_could
     own satellite is low), the held ones after it are trusted with an allowance of 10 m x 0.5^(age / 4 s) (the receiver
     filter's half-life), named cn0.hold, until the 6 s hold ends; then trusted outright."""
     from fusion.monitors.cn0 import RECEIVER_HALF_LIFE_S
-    from fusion.monitors.satellite_geometry import horizontal_slopes
 
-    el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
-    az = (np.arange(len(el)) * 137.5) % 360.0  # make_fix's azimuths
-    slope = horizontal_slopes(el, az, ["GPS"] * len(el))[1]
-    mon = monitors.create("cn0", hold_s=6.0, hold_allowance=True, nlos_bias_m=10.0 / slope)
-    rng = np.random.default_rng(9)
-    for t, e, snr in clean_epochs(rng, 400):
-        feed(mon, make_fix(t, e, snr))
-    snr = direct_cn0(el, rng)
-    snr[1] -= 2 * NLOS_LOSS_DB
-    flagged = feed(mon, make_fix(100.0, el, snr))
+    mon, el, rng, flagged = _ten_metre_suspect(hold_allowance=True)
     assert not flagged.trusted and flagged.rule == "cn0.deficit" and flagged.allowance_m == 0.0
     for k in range(1, 40):
         dt = round(0.2 * k, 1)

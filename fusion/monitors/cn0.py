@@ -376,8 +376,7 @@ class Cn0Monitor(Monitor):
     def _still_carried(self, shift: float, age_s: float) -> bool:
         """Whether a held fault (its suspects could move the fix `shift` m) may still move the receiver's output by more
         than fault_m `age_s` later: its effect halves every hold_half_life_s (always, without a half-life)."""
-        half_life = self.params.hold_half_life_s
-        return half_life is None or shift * 0.5 ** (age_s / half_life) > self.params.fault_m
+        return self.params.hold_half_life_s is None or self._carried(shift, age_s) > self.params.fault_m
 
     def _deficit(self, obs: FixObservation) -> tuple[float, float | None, str, str, float]:
         """(largest normalised deficit of the used satellites that count, template sigma or None when it cannot judge,

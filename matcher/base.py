@@ -101,7 +101,7 @@ class Matcher(ABC):
                 self._attitude = np.eye(3)
         if result.ok:
             self._attitude = self._attitude @ np.asarray(result.T, dtype=float)[:3, :3]
-            self.velocity.update(result.T, dt)
+            self.velocity.update(result.T, dt, result.cov)
             self._velocity_stamp = cloud.stamp
         self._commit(result.ok)
         self._ref_stamp = cloud.stamp

@@ -157,11 +157,21 @@ def twist_changed(a: np.ndarray | None, b: np.ndarray | None, dt: float, tol_m: 
     return bool(d[:3].max() > tol_m or d[3:].max() > tol_rad)
 
 
+SPEED_WALK_MPS_PER_SQRT_S = 0.3
+"""How far a vessel's velocity may wander where the scans stop measuring it, m/s per sqrt(s): a velocity random walk
+whose 3 sigma after 10 s is 3 m/s, a small craft's full range (the WAM-V 16's 500 N on 190 kg accelerate it at up to
+2.6 m/s^2; under way the library's vessels change speed by 0.03 m/s^2)."""
+
+
 class ConstantVelocity:
-    """Body twist per second from the last good relative motion; predicts the next one."""
+    """Body twist per second from the last good relative motion; predicts the next one. Beside it, how well the
+    translation velocity is known: each match's covariance fused with what was known before, grown by the speed's
+    random walk (SPEED_WALK_MPS_PER_SQRT_S), so a direction a degenerate match left unmeasured (its prior kept, its
+    variance "unknown") stays as well known as the last match that measured it, less the walk since."""
 
     def __init__(self) -> None:
         self.twist_per_s: np.ndarray | None = None
+        self.velocity_cov: np.ndarray | None = None  # 3x3 covariance of the translation velocity, (m/s)^2
 
     def predict(self, dt: float) -> np.ndarray:
         """Relative pose over dt seconds (identity when there is no estimate)."""
@@ -169,8 +179,25 @@ class ConstantVelocity:
             return np.eye(4)
         return se3_exp(self.twist_per_s * dt)
 
-    def update(self, T: np.ndarray, dt: float) -> None:
+    def translation_cov(self, dt: float) -> np.ndarray | None:
+        """3x3 covariance of the predicted translation over dt seconds (None when no motion with a covariance is known)."""
+        if self.velocity_cov is None:
+            return None
+        return (self.velocity_cov + np.eye(3) * SPEED_WALK_MPS_PER_SQRT_S**2 * dt) * dt**2
+
+    def update(self, T: np.ndarray, dt: float, cov: np.ndarray | None = None) -> None:
+        """Take the motion T over dt seconds (and its 6x6 [x, y, z, roll, pitch, yaw] covariance, when known)."""
         self.twist_per_s = se3_log(T) / dt
+        if cov is None:
+            self.velocity_cov = None
+            return
+        measured = np.asarray(cov, dtype=float)[:3, :3] / dt**2
+        if self.velocity_cov is None:
+            self.velocity_cov = measured
+            return
+        before = self.velocity_cov + np.eye(3) * SPEED_WALK_MPS_PER_SQRT_S**2 * dt
+        self.velocity_cov = np.linalg.inv(np.linalg.inv(before) + np.linalg.inv(measured))
 
     def reset(self) -> None:
         self.twist_per_s = None
+        self.velocity_cov = None

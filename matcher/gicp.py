@@ -98,7 +98,10 @@ class GicpParams(MatcherParams, DegeneracyParams, FloorParams):
         "(default 1: 0.1 m a revolution at 10 Hz, five times the range noise; slower boats pull little)",
     )
     mover_link_m: float = Field(
-        2.0, gt=0.0, description="points within this of each other belong to one object (default 2 m: a boat's rings 20-50 m off)"
+        2.0,
+        gt=0.0,
+        description="points in neighbouring voxels of this size belong to one object (default 2 m: a boat's rings stay joined "
+        "to 80 m off, 1.33 deg apart)",
     )
     mover_max_extent_m: float = Field(
         60.0, gt=0.0, description="an object wider than this is the static world, never a mover (default 60 m: a barge and its tug)"
@@ -200,7 +203,8 @@ class Gicp(DeskewingMatcher[_Prepared]):
                     comoving = moving_with_sensor(xyz, prior, ref.xyz, ref.normals, ref.nearest, ref.moving, p.max_correspondence_m, p.voxel_m)
                 drop = comoving.copy()
                 if p.drop_movers:
-                    drop |= moving_objects(xyz, prior, self.velocity.translation_cov(dt), dt, ref.xyz, ref.normals, ref.nearest, p.voxel_m, test)
+                    cov = self.velocity.translation_cov(dt)
+                    drop |= moving_objects(xyz, prior, cov, dt, ref.xyz, ref.normals, ref.nearest, p.voxel_m, test)
                 found.append((comoving, drop))
             return found[0]
 

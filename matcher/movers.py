@@ -33,6 +33,13 @@ from scipy import ndimage
 from matcher.motion import transform
 from matcher.planarity import voxel_keys
 
+WATERLINE_QUANTILE = 0.005
+"""The water surface in the scan: this low quantile of its heights (the banks, walls, piers and hulls all reach down to
+it, and the few water returns lie on it)."""
+FREEBOARD_M = 1.5
+"""An object that moves on its own floats: its lowest point lies within this of the water surface (a hull's side seen
+down to the waterline; a runabout's freeboard is under 1 m). A deck or a girder overhead, whose scan lines move with the
+sensor and fake a translation against their own line-fitted normals, is no boat."""
 MAX_MOVING_SHARE = 0.5
 """When more of the judged cells than this would be dropped, the prior is taken as wrong, not the world as moving."""
 MIN_CELLS = 8
@@ -77,10 +84,13 @@ def moving_objects(
     n[paired] = ref_normals[idx[paired]]
     r[paired] = np.einsum("ij,ij->i", n[paired], q[paired] - ref_xyz[idx[paired]])
     objects, count = _objects(q, test.link_m)
+    lowest = np.full(count, np.inf)
+    np.minimum.at(lowest, objects, q[:, 2])
+    floating = lowest <= np.quantile(q[:, 2], WATERLINE_QUANTILE) + FREEBOARD_M
     min_step = test.min_speed_mps * dt
     candidate = np.ones(len(q), dtype=bool)
     for _ in range(2):  # an object's translation, then again from the cells it explains: a pier a boat passes is not one
-        steps = _translations(objects, count, q, n, r, paired & candidate, min_step, prior_cov[:2, :2], test.max_extent_m)
+        steps = _translations(objects, count, q, n, r, paired & candidate, min_step, prior_cov[:2, :2], test.max_extent_m, floating)
         along = np.einsum("ij,ij->i", n[:, :2], steps[objects])
         explained = (np.abs(r - along) < np.abs(r)) & (np.abs(along) >= 0.5 * min_step)
         candidate = np.any(steps != 0.0, axis=1)[objects] & (explained | ~paired)
@@ -110,16 +120,17 @@ def _translations(
     min_step_m: float,
     prior_cov: np.ndarray,
     max_extent_m: float,
+    floating: np.ndarray,
 ) -> np.ndarray:
     """(count, 2) the horizontal translation of each object found moving, zeros for the rest: an object is moving when
-    it is small enough and its `use`d cells are explained by a translation of its own, along a direction they measure,
+    it floats, is small enough and its `use`d cells are explained by a translation of its own, along a direction they measure,
     longer than min_step_m plus three of the prior's standard deviations there (`prior_cov`, 2x2 horizontal): where the
     last match left a direction unknown, no object is judged along it."""
     lo = np.full((count, 2), np.inf)
     hi = np.full((count, 2), -np.inf)
     np.minimum.at(lo, objects, q[:, :2])
     np.maximum.at(hi, objects, q[:, :2])
-    small = (hi - lo).max(axis=1) <= max_extent_m
+    small = ((hi - lo).max(axis=1) <= max_extent_m) & floating
     at = use & small[objects]
     k = objects[at]
     nx, ny, e = n[at, 0], n[at, 1], r[at]

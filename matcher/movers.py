@@ -16,7 +16,7 @@ its points are dropped before registering. Only the directions the object's own 
 side-on says nothing along its length). A pier or a buoy is static: its translation is the prior's error. The prior is
 not fitted to the scan first: under a deck, where walls and deck leave the along-track motion to the piers, an oncoming
 boat facing the same way outweighs them and a fit takes its motion for the vessel's (busy_waterway seed 2: 5.4 m/s
-for 2.4). When more than half of the judged cells would be dropped, the prior is more likely wrong than the world
+for 2.4). When more than half of the scan's cells would be dropped, the prior is more likely wrong than the world
 moving, and nothing is. Nothing is remembered from scan to scan: the reference a mover was dropped from holds no
 partner for its next returns, which then pair with nothing (ICP's correspondences end at max_correspondence_m) and are
 judged again against the scan after; carrying the drop forward to whatever lay near a dropped object spread it over
@@ -40,8 +40,10 @@ FREEBOARD_M = 1.5
 """An object that moves on its own floats: its lowest point lies within this of the water surface (a hull's side seen
 down to the waterline; a runabout's freeboard is under 1 m). A deck or a girder overhead, whose scan lines move with the
 sensor and fake a translation against their own line-fitted normals, is no boat."""
+BOAT_HEIGHT_M = 12.0
+"""No boat stands higher above the water than this (the library's barge: a 7.5 m wheelhouse on its deck)."""
 MAX_MOVING_SHARE = 0.5
-"""When more of the judged cells than this would be dropped, the prior is taken as wrong, not the world as moving."""
+"""When more of the scan's cells than this would be dropped, the prior is taken as wrong, not the world as moving."""
 MIN_CELLS = 8
 """An object needs this many cells with a reference partner to be judged (fewer: too little to fit a translation)."""
 MIN_INFORMATION = 4.0
@@ -73,30 +75,40 @@ def moving_objects(
     """Mask of the points of `xyz` (new scan, its frame) on objects moving on their own, given the motion `prior` (4x4,
     new frame in the reference's) and its translation's 3x3 covariance (None: unknown, nothing is judged) over `dt`
     seconds, the reference's points, normals and nearest-point query (partners within test.max_m)."""
+    none = np.zeros(len(xyz), dtype=bool)
     if len(xyz) == 0 or dt <= 0.0 or prior_cov is None:
-        return np.zeros(len(xyz), dtype=bool)
+        return none
     _, first, cell = np.unique(voxel_keys(xyz, cell_m), return_index=True, return_inverse=True)
     q = transform(xyz[first], prior[:3, :3], prior[:3, 3])
+    at = int(WATERLINE_QUANTILE * (len(q) - 1))
+    waterline = np.partition(q[:, 2], at)[at]
+    low = np.flatnonzero(q[:, 2] <= waterline + BOAT_HEIGHT_M)  # what stands higher is no boat's, and is not grouped
+    objects, count = _objects(q[low], test.link_m)
+    order = np.argsort(objects, kind="stable")
+    starts = np.searchsorted(objects[order], np.arange(count))
+    lo, hi = np.minimum.reduceat(q[low][order], starts), np.maximum.reduceat(q[low][order], starts)
+    eligible = ((hi[:, :2] - lo[:, :2]).max(axis=1) <= test.max_extent_m) & (lo[:, 2] <= waterline + FREEBOARD_M)
+    judged = low[eligible[objects]]
+    if not len(judged):
+        return none
+    q, objects = q[judged], objects[eligible[objects]]  # only the cells of objects that could be boats are paired and judged
     dist, idx = ref_nearest.query(q, distance_upper_bound=test.max_m)
     paired = np.isfinite(dist)
     n = np.zeros_like(q)
     r = np.zeros(len(q))
     n[paired] = ref_normals[idx[paired]]
     r[paired] = np.einsum("ij,ij->i", n[paired], q[paired] - ref_xyz[idx[paired]])
-    objects, count = _objects(q, test.link_m)
-    lowest = np.full(count, np.inf)
-    np.minimum.at(lowest, objects, q[:, 2])
-    floating = lowest <= np.quantile(q[:, 2], WATERLINE_QUANTILE) + FREEBOARD_M
     min_step = test.min_speed_mps * dt
     candidate = np.ones(len(q), dtype=bool)
     for _ in range(2):  # an object's translation, then again from the cells it explains: a pier a boat passes is not one
-        steps = _translations(objects, count, q, n, r, paired & candidate, min_step, prior_cov[:2, :2], test.max_extent_m, floating)
+        steps = _translations(objects, count, n, r, paired & candidate, min_step, prior_cov[:2, :2])
         along = np.einsum("ij,ij->i", n[:, :2], steps[objects])
         explained = (np.abs(r - along) < np.abs(r)) & (np.abs(along) >= 0.5 * min_step)
         candidate = np.any(steps != 0.0, axis=1)[objects] & (explained | ~paired)
-    moving = candidate
-    if moving[paired].sum() > MAX_MOVING_SHARE * paired.sum():
-        return np.zeros(len(xyz), dtype=bool)
+    if candidate.sum() > MAX_MOVING_SHARE * len(first):
+        return none
+    moving = np.zeros(len(first), dtype=bool)
+    moving[judged] = candidate
     return moving[cell.reshape(-1)]
 
 
@@ -111,44 +123,27 @@ def _objects(q: np.ndarray, link_m: float) -> tuple[np.ndarray, int]:
 
 
 def _translations(
-    objects: np.ndarray,
-    count: int,
-    q: np.ndarray,
-    n: np.ndarray,
-    r: np.ndarray,
-    use: np.ndarray,
-    min_step_m: float,
-    prior_cov: np.ndarray,
-    max_extent_m: float,
-    floating: np.ndarray,
+    objects: np.ndarray, count: int, n: np.ndarray, r: np.ndarray, use: np.ndarray, min_step_m: float, prior_cov: np.ndarray
 ) -> np.ndarray:
     """(count, 2) the horizontal translation of each object found moving, zeros for the rest: an object is moving when
-    it floats, is small enough and its `use`d cells are explained by a translation of its own, along a direction they measure,
-    longer than min_step_m plus three of the prior's standard deviations there (`prior_cov`, 2x2 horizontal): where the
-    last match left a direction unknown, no object is judged along it."""
-    lo = np.full((count, 2), np.inf)
-    hi = np.full((count, 2), -np.inf)
-    np.minimum.at(lo, objects, q[:, :2])
-    np.maximum.at(hi, objects, q[:, :2])
-    small = ((hi - lo).max(axis=1) <= max_extent_m) & floating
-    at = use & small[objects]
-    k = objects[at]
-    nx, ny, e = n[at, 0], n[at, 1], r[at]
-    cells = np.bincount(k, minlength=count)
+    its `use`d cells are explained by a translation of its own, along a direction they measure, longer than min_step_m
+    plus three of the prior's standard deviations there (`prior_cov`, 2x2 horizontal): where the last match left a
+    direction unknown, no object is judged along it."""
+    k = objects[use]
+    nx, ny, e = n[use, 0], n[use, 1], r[use]
+    steps = np.zeros((count, 2))
+    judged = np.flatnonzero(np.bincount(k, minlength=count) >= MIN_CELLS)
+    if not len(judged):
+        return steps
     A = np.zeros((count, 2, 2))
     A[:, 0, 0] = np.bincount(k, nx * nx, count)
     A[:, 0, 1] = A[:, 1, 0] = np.bincount(k, nx * ny, count)
     A[:, 1, 1] = np.bincount(k, ny * ny, count)
-    b = np.column_stack([np.bincount(k, nx * e, count), np.bincount(k, ny * e, count)])
-    steps = np.zeros((count, 2))
-    for j in np.flatnonzero(small & (cells >= MIN_CELLS)):
-        values, vectors = np.linalg.eigh(A[j])
-        measured = values >= MIN_INFORMATION
-        if not measured.any():
-            continue
-        along = vectors[:, measured]
-        step = (along.T @ b[j]) / values[measured]  # the translation along each measured direction
-        doubt = np.sqrt(np.einsum("ik,ij,jk->k", along, prior_cov, along))
-        if (np.abs(step) > min_step_m + 3.0 * doubt).any():
-            steps[j] = along @ step
+    b = np.column_stack([np.bincount(k, nx * e, count), np.bincount(k, ny * e, count)])[judged]
+    values, vectors = np.linalg.eigh(A[judged])
+    measured = values >= MIN_INFORMATION
+    along = np.einsum("kij,ki->kj", vectors, b) / np.where(measured, values, 1.0)  # the translation along each eigenvector
+    doubt = np.sqrt(np.einsum("kij,il,klj->kj", vectors, prior_cov, vectors))
+    moving = (measured & (np.abs(along) > min_step_m + 3.0 * doubt)).any(axis=1)
+    steps[judged[moving]] = np.einsum("kij,kj->ki", vectors[moving], np.where(measured, along, 0.0)[moving])
     return steps

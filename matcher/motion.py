@@ -188,10 +188,10 @@ class ConstantVelocity:
     def update(self, T: np.ndarray, dt: float, cov: np.ndarray | None = None) -> None:
         """Take the motion T over dt seconds (and its 6x6 [x, y, z, roll, pitch, yaw] covariance, when known)."""
         self.twist_per_s = se3_log(T) / dt
-        if cov is None:
-            self.velocity_cov = None
+        measured = None if cov is None else np.asarray(cov, dtype=float)[:3, :3] / dt**2
+        if measured is None or not np.isfinite(measured).all() or np.linalg.eigvalsh(0.5 * (measured + measured.T))[0] <= 0.0:
+            self.velocity_cov = None  # no usable covariance (a plugin's may be anything): the velocity's is unknown
             return
-        measured = np.asarray(cov, dtype=float)[:3, :3] / dt**2
         if self.velocity_cov is None:
             self.velocity_cov = measured
             return

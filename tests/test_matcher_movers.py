@@ -12,6 +12,7 @@ from scipy.spatial import cKDTree
 import matcher
 import sim
 import worlds
+from matcher.motion import SPEED_WALK_MPS_PER_SQRT_S, ConstantVelocity
 from matcher.movers import MoverTest, moving_objects
 from worlds.bridges import BridgeSpec
 
@@ -152,3 +153,19 @@ def test_a_pier_a_hull_passes_is_kept():
     static, _ = _planes(rng)
     pier = static[:, 0] > 19.5
     assert not mask[: len(static)][pier].any()
+
+
+def test_the_prior_covariance_keeps_what_a_degenerate_match_did_not_measure():
+    cv = ConstantVelocity()
+    step = np.eye(4)
+    step[0, 3] = 0.2
+    cv.update(step, 0.1, np.diag([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]))
+    known = cv.translation_cov(0.1)[0, 0]
+    cv.update(step, 0.1, np.diag([1.0, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]))  # x unknown this time: the prior was kept there
+    after = cv.translation_cov(0.1)[0, 0]
+    walk = SPEED_WALK_MPS_PER_SQRT_S**2 * 0.1 * 0.1**2  # one revolution's walk, as a translation variance
+    assert known < after < known + 2.5 * walk + 1e-9
+    cv.update(step, 0.1, np.diag([np.nan] * 6))  # a plugin's covariance may be anything
+    assert cv.translation_cov(0.1) is None
+    cv.update(step, 0.1, np.zeros((6, 6)))
+    assert cv.translation_cov(0.1) is None

@@ -86,12 +86,14 @@ def moving_objects(
     objects, count = _objects(q[low], test.link_m)
     order = np.argsort(objects, kind="stable")
     starts = np.searchsorted(objects[order], np.arange(count))
-    lo, hi = np.minimum.reduceat(q[low][order], starts), np.maximum.reduceat(q[low][order], starts)
+    grouped = q[low][order]
+    lo, hi = np.minimum.reduceat(grouped, starts), np.maximum.reduceat(grouped, starts)
     eligible = ((hi[:, :2] - lo[:, :2]).max(axis=1) <= test.max_extent_m) & (lo[:, 2] <= waterline + FREEBOARD_M)
-    judged = low[eligible[objects]]
+    kept = eligible[objects]
+    judged = low[kept]
     if not len(judged):
         return none
-    q, objects = q[judged], objects[eligible[objects]]  # only the cells of objects that could be boats are paired and judged
+    q, objects = q[judged], objects[kept]  # only the cells of objects that could be boats are paired and judged
     dist, idx = ref_nearest.query(q, distance_upper_bound=test.max_m)
     paired = np.isfinite(dist)
     n = np.zeros_like(q)

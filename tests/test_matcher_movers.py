@@ -11,10 +11,9 @@ from scipy.spatial import cKDTree
 
 import matcher
 import sim
-import worlds
 from matcher.motion import SPEED_WALK_MPS_PER_SQRT_S, ConstantVelocity
 from matcher.movers import MoverTest, moving_objects
-from worlds.bridges import BridgeSpec
+from tests.beam_bridge import beam_bridge_river
 
 STATION_M = 200.0
 TEST = MoverTest(min_speed_mps=1.0, link_m=2.0, max_extent_m=60.0, max_m=1.0)
@@ -22,10 +21,7 @@ TEST = MoverTest(min_speed_mps=1.0, link_m=2.0, max_extent_m=60.0, max_m=1.0)
 
 @pytest.fixture(scope="module")
 def static_scene():
-    bridge = BridgeSpec(
-        name="bridge", type="beam", station_m=STATION_M, deck_height_m=6.0, deck_width_m=20.0, pier_spacing_m=40.0, girder_spacing_m=3.0
-    )
-    world = worlds.load("open_river", length_m=400.0, width_m=120.0, bend_amplitude_m=0.0, bridges=[bridge])
+    world = beam_bridge_river(STATION_M)
     return world, sim.Trajectory(world, start_m=STATION_M - 30.0, speed_mps=2.3, speed_variation=0.0)
 
 

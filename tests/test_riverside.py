@@ -35,7 +35,7 @@ def kinds_of(world):
 
 
 def test_path_length_through_spheroids_is_the_exact_chord():
-    crowns = Crowns(np.array([[20.0, 0.0, 5.0], [0.0, 0.0, 10.0]]), np.array([[3.0, 3.0], [4.0, 2.0]]))
+    crowns = Crowns(np.array([[20.0, 0.0, 5.0], [0.0, 0.0, 10.0]]), np.array([[3.0, 3.0], [4.0, 2.0]]), np.full(2, 0.175))
     d = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
     np.testing.assert_allclose(crowns.path_length([0.0, 0.0, 5.0], d), [6.0, 4.0, 0.0], atol=1e-12)
     # from inside the flat crown straight up: from z = 9 to its top at z = 12
@@ -50,7 +50,7 @@ def test_rays_through_crowns_pass_as_often_as_the_leaf_density_says_and_hit_insi
     between the inner (facet centres) and outer diameter; hits inside the envelope; normals scattered."""
     rng = np.random.default_rng(1)
     centres = np.c_[np.arange(40) * 30.0, np.zeros(40), np.full(40, 10.0)]
-    crowns = Crowns(centres, np.full((40, 2), 5.0))
+    crowns = Crowns(centres, np.full((40, 2), 5.0), np.full(40, 0.175))
     foliage = Foliage()
     mesh = _facets(crowns, foliage, rng)
     inside = ((mesh.vertices[:, None, :] - centres[None]) ** 2).sum(-1).min(axis=1)
@@ -84,7 +84,7 @@ def test_satellite_behind_a_crown_loses_the_documented_db_and_one_behind_a_build
     antenna = open_fix.truth.enu
     to_leafy = gw.direction(leafy.az_deg, leafy.el_deg)
     radius = 3.0
-    crowns = Crowns((antenna + 25.0 * to_leafy)[None], np.array([[radius, radius]]))
+    crowns = Crowns((antenna + 25.0 * to_leafy)[None], np.array([[radius, radius]]), np.array([0.175]))
     ball = trimesh.creation.icosphere(subdivisions=2, radius=radius)  # a solid ball of leaves: must not block
     ball.apply_translation(crowns.centre[0])
     block = trimesh.creation.box(extents=(4.0, 4.0, 4.0))

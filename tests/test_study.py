@@ -308,6 +308,22 @@ def test_finding_g_judges_shares_of_points_not_of_feature_matches():
     assert [c.claim.split(":")[0] for c in checks] == ["pcl6d outlier_share"] and verdict(checks) == "agrees"
 
 
+def test_the_field_setup_judges_matching_on_the_studys_own_two_methods():
+    """Findings f and g are about what the study ran (Method 1, pcl6d; Method 2, bev3dof): under the field setup a
+    modern matcher's success below the band is reported, not held against the study's finding."""
+    from scenarios.study.setups import SETUPS
+
+    f = by_key()["f"]
+    outcome = {"pcl6d": False, "bev3dof": False, "gicp": True}  # below the band; every one succeeds in it
+    rows = [{"matcher": mid, "points": pts, "ok": ok} for mid in outcome for pts, ok in ((3000, outcome[mid]), (9000, True)) for _ in range(12)]
+    m = success_curve(rows, ["pcl6d", "bev3dof", "gicp"], f.figures["points_band"])
+    every = verdicts.checks_f(m, f)
+    field = verdicts.checks_f(m, f, SETUPS["field"].judged_matchers)
+    assert verdict(every) == "partly" and verdict(field) == "agrees"
+    assert {c.claim.split()[0] for c in field} == {"pcl6d", "bev3dof"}
+    assert SETUPS["bench"].judged_matchers is None
+
+
 def test_the_cause_of_finding_a_names_the_deck_a_fix_held_under():
     from scenarios.study.causes import cause
 

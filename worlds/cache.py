@@ -61,7 +61,7 @@ def save(world: World, path: Path) -> None:
         arrays[f"f{i}"] = np.asarray(p.mesh.faces, dtype=np.int64)
     r = world.route
     arrays |= {"route_xy": r.xy, "route_s": r.s, "route_heading": r.heading, "route_left": r.left_m, "route_right": r.right_m}
-    arrays |= {"crown_centre": world.crowns.centre, "crown_radius": world.crowns.radius}
+    arrays |= {"crown_centre": world.crowns.centre, "crown_radius": world.crowns.radius, "crown_extinction": world.crowns.extinction_per_m}
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     try:
@@ -83,7 +83,7 @@ def read(path: Path) -> World:
             for i, m in enumerate(meta["parts"])
         ]
         route = Route(xy=data["route_xy"], s=data["route_s"], heading=data["route_heading"], left_m=data["route_left"], right_m=data["route_right"])
-        crowns = Crowns(data["crown_centre"], data["crown_radius"])
+        crowns = Crowns(data["crown_centre"], data["crown_radius"], data["crown_extinction"])
     return World(name=meta["name"], parts=parts, route=route, origin=tuple(meta["origin"]), params=meta["params"], crowns=crowns)
 
 

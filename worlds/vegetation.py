@@ -26,6 +26,9 @@ from worlds.placement import Edges, RouteDistance, SolidDistance
 from worlds.world import Part
 
 TRUNK_SECTIONS = 6
+LEAF_PROJECTION = 0.5
+"""Mean projected area of a randomly oriented leaf per unit of its area (Ross's G-function for a spherical leaf angle
+distribution, Ross 1981): a ray meets leaves at leaf_density x this per metre of crown."""
 SMALL_CROWN_FACET = 0.35
 """Facets are at most this share of a crown's smaller radius: small crowns get finer leaf clusters."""
 
@@ -93,7 +96,7 @@ def build_trees(
     base, height, radius, trunk_r, centre, crown_h = base[ok], height[ok], radius[ok], trunk_r[ok], centre[ok], crown_h[ok]
     if not len(base):
         return [], Crowns.empty()
-    crowns = Crowns(centre, np.c_[radius, crown_h])
+    crowns = Crowns(centre, np.c_[radius, crown_h], np.full(len(centre), foliage.leaf_density * LEAF_PROJECTION))
     trunks = _trunks(base, centre[:, 2], trunk_r)
     return [Part("tree_trunks", "tree", TIMBER, trunks), Part("tree_crowns", "foliage", VEGETATION, _facets(crowns, foliage, rng))], crowns
 

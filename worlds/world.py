@@ -109,6 +109,11 @@ class World:
         return self.part_is_water[self.face_part]
 
     @cached_property
+    def face_is_foliage(self) -> np.ndarray:
+        """True for every face of `mesh` on a porous tree crown (worlds.vegetation's facets)."""
+        return np.array([p.material.foliage for p in self.parts], dtype=bool)[self.face_part]
+
+    @cached_property
     def part_is_water(self) -> np.ndarray:
         """True per part index for water surfaces."""
         return np.array([p.material.water for p in self.parts], dtype=bool)

@@ -29,6 +29,8 @@ class Setup:
     """[gnss] fields written over the library scenario's (empty: the library's receiver, sbas with four systems)."""
     method1: dict = field(default_factory=dict)
     """pcl6d parameters of Method 1 (empty: pcl6d at its defaults, the bench's Method 1)."""
+    judged_matchers: tuple[str, ...] | None = None
+    """The matchers whose figures findings f and g judge (None: every matcher); the others are reported beside them."""
 
 
 SETUPS: dict[str, Setup] = {
@@ -44,9 +46,11 @@ SETUPS: dict[str, Setup] = {
         "global one in 2020; its carrier smoothing restarting at reacquisition); Method 1 as the study describes it, FPFH "
         "pre-alignment with correspondence rejection then ICP on every pair of scans (the bench's pcl6d skips the "
         "pre-alignment for scans 0.25 s apart or less), its RANSAC run as PCL's SampleConsensusPrerejective runs it: "
-        "a fixed count of hypotheses, PCL's default 5,000, with no early exit at a confidence (Open3D's default stops there)",
+        "a fixed count of hypotheses, PCL's default 5,000, with no early exit at a confidence (Open3D's default stops there); "
+        "its findings on matching (f, g) judged on its two methods, which are what it ran (kiss_icp and gicp reported beside)",
         receiver={"profile": "sbas_gps"},
         method1={"skip_prealign_max_dt_s": 0.0, "ransac_until": "max_iterations", "ransac_max_iterations": 5000},
+        judged_matchers=("pcl6d", "bev3dof"),
     ),
 }
 """The setups by name."""

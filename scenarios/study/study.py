@@ -33,7 +33,7 @@ from scenarios.study.findings import CITATION, FINDINGS
 from scenarios.study.plan import MATCHERS, SCENARIO, StudyPlan, burst_starts, chain_pieces, component_scenario, study_scenario
 from scenarios.study.setups import FIELD_METHOD1_ID, SETUP_NAMES, SETUPS
 from scenarios.study.tasks import GnssSample, Timed, run_task
-from scenarios.study.verdicts import RULES, headline, verdict
+from scenarios.study.verdicts import BY_MATCHER, RULES, headline, verdict
 
 Progress = Callable[[int, int, str], None]
 """progress(jobs done, jobs in all, what finished)."""
@@ -277,7 +277,8 @@ def _judged(setup: str, measured: dict) -> dict:
     """Each finding's verdict, headline, cause, checks and measurements under one setup."""
     out = {}
     for x in FINDINGS:
-        checks = RULES[x.key](measured[x.key], x)
+        judged = {"judged": SETUPS[setup].judged_matchers} if x.key in BY_MATCHER else {}
+        checks = RULES[x.key](measured[x.key], x, **judged)
         v = verdict(checks)
         out[x.key] = {
             "verdict": v,

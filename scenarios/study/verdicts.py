@@ -175,10 +175,12 @@ def checks_e(m: dict, finding: Finding) -> list[Check]:
     ]
 
 
-def checks_f(m: dict, finding: Finding) -> list[Check]:
+def checks_f(m: dict, finding: Finding, judged: tuple[str, ...] | None = None) -> list[Check]:
     lo, hi = finding.figures["points_band"]
     out = []
     for mid, s in m["matchers"].items():
+        if judged is not None and mid not in judged:
+            continue
         band = s["band_success"] if s["band_count"] >= MIN_COUNT else math.nan
         below = s["below_success"] if s["below_count"] >= MIN_COUNT else math.nan
         out.append(
@@ -200,10 +202,12 @@ def checks_f(m: dict, finding: Finding) -> list[Check]:
     return out
 
 
-def checks_g(m: dict, finding: Finding) -> list[Check]:
+def checks_g(m: dict, finding: Finding, judged: tuple[str, ...] | None = None) -> list[Check]:
     limit = finding.figures["outlier_share"]
     out = []
     for mid, node in m.items():
+        if judged is not None and mid not in judged:
+            continue
         for key, s in node.items():
             if key not in POINT_SHARES:
                 continue
@@ -239,6 +243,8 @@ def checks_h(m: dict, finding: Finding) -> list[Check]:
 
 RULES = {"a": checks_a, "b": checks_b, "c": checks_c, "d": checks_d, "e": checks_e, "f": checks_f, "g": checks_g, "h": checks_h}
 """The checks of each finding, by key."""
+BY_MATCHER = ("f", "g")
+"""The findings whose checks take the matchers a setup judges (setups.Setup.judged_matchers)."""
 
 
 def headline(key: str, m: dict) -> str:

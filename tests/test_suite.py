@@ -86,6 +86,18 @@ def test_suite_fast_runs_what_the_baseline_ran_the_full_scenario_where_there_is_
                 assert ran.stretch == full.stretch and ran.expect == full.expect
 
 
+def test_the_demos_baseline_records_what_the_full_quickstart_runs():
+    """quickstart.json (the full quickstart, compared by `suite quickstart --full --baseline`) keys each seed's run by
+    the hash of what runs: a definition that moved without a re-measurement, or a re-keying, shows here."""
+    from scenarios.batch.suite import Job, case_scenario
+    from scenarios.score import baseline
+
+    stored = baseline.load(BASELINE.with_name("quickstart.json"))
+    assert not stored.fast and list(stored.scenarios) == ["quickstart"]
+    runs = stored.scenarios["quickstart"]
+    assert [case_scenario(Job("quickstart", seed), fast=False).setup_hash for seed in runs.seeds] == runs.hashes
+
+
 def test_suite_reports_a_failing_and_a_broken_scenario_and_exits_1(tmp_path):
     failing = tmp_path / "failing.toml"
     failing.write_text(

@@ -192,13 +192,7 @@ class HDL32E:
         visible = self._visible(trajectory)
         foliage_rng = stream(cfg.seed, f"sim.lidar.foliage@{t0:.9f}") if cfg.foliage_echo == "leaves" and len(world.crowns) else None
         if foliage_rng is not None:
-            # a crown's chord can reach into range from a facet hit up to one crown's height beyond it
-            near = t_hit <= cfg.max_range_m + 2.0 * world.crowns.radius.max()
-            leafy = near & world.face_is_foliage[np.where(near, primitive, 0)]
-            if movers_hit is not None:
-                leafy[movers_hit[0]] = False
-            at = np.flatnonzero(leafy)
-            t_hit[at] = crown_echo_ranges(world.crowns, rays[at, :3], rays[at, 3:], t_hit[at], foliage_rng)
+            self._echo_from_leaves(world, rays, t_hit, primitive, foliage_rng, None if movers_hit is None else movers_hit[0])
         valid = (t_hit <= cfg.max_range_m) & visible
         mixed, mixed_range, mixed_power, mixed_part = self._mixed(world, poses, t_hit, valid, visible, primitive, cos_all, movers_hit, foliage_rng)
         is_mixed = np.zeros_like(valid)
@@ -290,8 +284,7 @@ class HDL32E:
         hit = world.raycasting_scene.cast_rays(o3d.core.Tensor.from_numpy(sub))
         sub_t, sub_face = hit["t_hit"].numpy(), hit["primitive_ids"].numpy()
         if foliage_rng is not None:
-            at = np.flatnonzero(np.isfinite(sub_t) & world.face_is_foliage[np.where(np.isfinite(sub_t), sub_face, 0)])
-            sub_t[at] = crown_echo_ranges(world.crowns, sub[at, :3], sub[at, 3:], sub_t[at], foliage_rng)
+            self._echo_from_leaves(world, sub, sub_t, sub_face, foliage_rng)
         width = 1 + len(self._footprint)
         t = np.repeat(t_hit[rays, None].astype(np.float64), width, axis=1)
         face = np.repeat(primitive[rays, None], width, axis=1)
@@ -308,6 +301,19 @@ class HDL32E:
         keep = mean_power > 0
         part = world.face_part[face[np.arange(len(rays)), strongest]]
         return rays[keep], mixed_range[keep], mean_power[keep].astype(np.float32), part[keep]
+
+    def _echo_from_leaves(
+        self, world: World, rays: np.ndarray, t: np.ndarray, face: np.ndarray, rng: np.random.Generator, skip: np.ndarray | None = None
+    ) -> None:
+        """Give every ray (rays (M, 6), t its hit range, face its hit face) that met a crown's facet the range of a leaf
+        deeper in (sim.foliage), in place; rays in `skip` (those a mover took) keep theirs. Only hits within one crown's
+        height beyond the range limit are drawn: a crown's chord can bring no farther one into range."""
+        near = t <= self.config.max_range_m + 2.0 * world.crowns.radius.max()
+        leafy = near & world.face_is_foliage[np.where(near, face, 0)]
+        if skip is not None:
+            leafy[skip] = False
+        at = np.flatnonzero(leafy)
+        t[at] = crown_echo_ranges(world.crowns, rays[at, :3], rays[at, 3:], t[at], rng)
 
     def dry_hits(self, world: World | Scene, trajectory, t0: float) -> int:
         """Rays of the revolution at t0 that meet a surface other than water within the reported range and clear the

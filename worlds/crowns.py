@@ -63,9 +63,7 @@ class Crowns:
         a = np.einsum("mnk,mnk->mn", d, d)
         b = np.einsum("mnk,nk->mn", d, o)
         c = np.einsum("nk,nk->n", o, o) - 1.0
-        disc = b * b - a * c[None, :]
-        root = np.sqrt(np.maximum(disc, 0.0))
-        t1, t2 = (-b - root) / a, (-b + root) / a
+        disc, t1, t2 = _roots(a, b, c[None, :])
         chord = np.where(disc > 0, np.maximum(t2 - np.maximum(t1, 0.0), 0.0), 0.0)
         return chord.sum(axis=1)
 
@@ -93,10 +91,7 @@ class Crowns:
         d = directions[:, None, :] * scale
         a = np.einsum("mkj,mkj->mk", d, d)
         b = np.einsum("mkj,mkj->mk", d, o)
-        c = np.einsum("mkj,mkj->mk", o, o) - 1.0
-        disc = b * b - a * c
-        root = np.sqrt(np.maximum(disc, 0.0))
-        s1, s2 = (-b - root) / a, (-b + root) / a
+        disc, s1, s2 = _roots(a, b, np.einsum("mkj,mkj->mk", o, o) - 1.0)
         holds = real & (disc > 0) & (s1 - 0.01 <= t[:, None]) & (t[:, None] <= s2 + 0.01)
         found = holds.any(axis=1)
         first = np.argmax(holds, axis=1)
@@ -105,3 +100,11 @@ class Crowns:
         entry[rows] = np.maximum(s1[rows, first[rows]], 0.0)
         exit_[rows] = s2[rows, first[rows]]
         return crown, entry, exit_
+
+
+def _roots(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(discriminant, smaller root, larger root) of a t^2 + 2 b t + c = 0: where a ray meets a crown scaled to the unit
+    sphere (no crossing where the discriminant is not positive)."""
+    disc = b * b - a * c
+    root = np.sqrt(np.maximum(disc, 0.0))
+    return disc, (-b - root) / a, (-b + root) / a

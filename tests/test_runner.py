@@ -4,8 +4,12 @@ counts and re-runs of the resolved scenario, recorded failures, and nothing half
 import calendar
 import csv
 import json
+import os
+import subprocess
+import sys
 import tomllib
 from functools import reduce
+from pathlib import Path
 
 import numpy as np
 import pynmea2
@@ -229,6 +233,33 @@ def test_ctrl_c_stops_cleanly_and_leaves_nothing(tmp_path):
         scenarios.run(short(), tmp_path / "run", workers=2, report=False, progress=interrupt)
     assert list(tmp_path.iterdir()) == []
 
+
+KILLED_LANE = """
+import os, signal, time
+import numpy as np
+from scenarios.pipeline.matcher_pool import MatcherPool, MatcherSetup
+from sim.scan import POINT_DTYPE, Scan
+
+if __name__ == "__main__":
+    pool = MatcherPool([MatcherSetup("gicp", "gicp", {})], workers=2)  # gicp on the worker's lane
+    points = np.zeros(60_000, dtype=POINT_DTYPE)
+    points["x"], points["y"], points["z"] = np.random.default_rng(0).normal(scale=20.0, size=(3, 60_000))
+    for k in range(10):  # more scans than the pipe to the worker holds: its feeder thread is left writing
+        pool.submit(Scan(stamp=0.1 * k, points=points))
+    os.kill(pool._procs[0][0].pid, signal.SIGTERM)  # what a `kill` of the whole process group does to the worker
+    time.sleep(0.5)
+    pool.close()
+"""
+
+
+def test_a_matcher_worker_killed_with_scans_unread_does_not_hold_the_process_exit(tmp_path):
+    # the kill-group CI hang (tests/test_cli.py): the caller printed "stopped" and then waited forever at exit, joining its
+    # queue's feeder thread, blocked writing scans into a pipe only the dead worker read
+    script = tmp_path / "killed_lane.py"
+    script.write_text(KILLED_LANE)
+    env = {**os.environ, "PYTHONPATH": str(Path(scenarios.__file__).parents[1])}
+    done = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
 
 def test_refuses_a_non_empty_output_directory(tmp_path):
     (tmp_path / "run").mkdir()

@@ -189,6 +189,7 @@ class MatcherPool:
             proc.join(timeout=5.0)
             if proc.is_alive():
                 proc.terminate()
+            inbox.cancel_join_thread()  # scans a killed worker never read must not hold this process's exit
         self._procs = []
 
     @staticmethod

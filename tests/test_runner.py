@@ -261,6 +261,7 @@ def test_a_matcher_worker_killed_with_scans_unread_does_not_hold_the_process_exi
     done = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
 
+
 def test_refuses_a_non_empty_output_directory(tmp_path):
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "keep.txt").write_text("mine")

@@ -8,6 +8,10 @@ the matchers' `MatchResult`s; never the simulator's truth.
 
 from __future__ import annotations
 
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+
+# isort: split
+
 from collections.abc import Callable
 from typing import Any
 

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+
+# isort: split
+
 from importlib import import_module
 from typing import Any
 

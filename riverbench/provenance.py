@@ -8,6 +8,8 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
+from riverbench import blas
+
 KEY_PACKAGES = ("numpy", "scipy", "open3d-cpu", "open3d", "trimesh", "kiss-icp", "small-gicp", "opencv-python-headless", "pymap3d", "pydantic")
 """Distributions whose version can move a metric (the ones absent are left out)."""
 SOURCE = Path(__file__).resolve().parent.parent
@@ -22,6 +24,7 @@ def collect() -> dict:
         "platform": f"{platform.system()} {platform.release()} {platform.machine()}",
         "cpus": _cpus(),
         "cpu": cpu_model(),
+        "blas_kernels": blas.in_force(),
         "packages": {name: v for name in KEY_PACKAGES if (v := _version(name))},
     }
 

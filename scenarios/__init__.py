@@ -7,6 +7,8 @@ scenarios.run(scenario, "runs/x")     -> RunResult (run directory, metrics, expe
 
 from __future__ import annotations
 
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+
 
 def available() -> list[str]:
     """Names of the library's scenarios."""

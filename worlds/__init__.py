@@ -9,6 +9,10 @@ worlds.describe(world)                  -> json-able summary
 
 from __future__ import annotations
 
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+
+# isort: split
+
 import os
 from pathlib import Path
 

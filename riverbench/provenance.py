@@ -64,11 +64,15 @@ def cpu_model() -> str:
 
 def other_cpu(measured: dict) -> str | None:
     """'was measured on <model>, this is <model>: ...' when the provenance `measured` names another CPU model than
-    this machine's, else None (also when either is unknown)."""
+    this machine's, or other BLAS kernels than this process runs (riverbench.blas: the same model name can cover CPUs
+    with and without AVX-512), else None (also when either is unknown)."""
     there, here = measured.get("cpu"), cpu_model()
-    if not there or not here or there == here:
-        return None
-    return f"was measured on {there}, this is {here}: matcher-fed metrics may differ without a code change"
+    if there and here and there != here:
+        return f"was measured on {there}, this is {here}: matcher-fed metrics may differ without a code change"
+    kernels_there, kernels_here = measured.get("blas_kernels"), blas.in_force()
+    if kernels_there and kernels_there != kernels_here:
+        return f"was measured with the BLAS kernels {kernels_there}, this runs {kernels_here}: matcher-fed metrics may differ without a code change"
+    return None
 
 
 def _cpus() -> int:

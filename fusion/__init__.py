@@ -8,7 +8,7 @@ the matchers' `MatchResult`s; never the simulator's truth.
 
 from __future__ import annotations
 
-import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the numeric kernels, riverbench.kernels)
 
 # isort: split
 

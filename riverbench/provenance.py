@@ -8,7 +8,7 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
-from riverbench import blas
+from riverbench import kernels
 
 KEY_PACKAGES = ("numpy", "scipy", "open3d-cpu", "open3d", "trimesh", "kiss-icp", "small-gicp", "opencv-python-headless", "pymap3d", "pydantic")
 """Distributions whose version can move a metric (the ones absent are left out)."""
@@ -24,7 +24,7 @@ def collect() -> dict:
         "platform": f"{platform.system()} {platform.release()} {platform.machine()}",
         "cpus": _cpus(),
         "cpu": cpu_model(),
-        "blas_kernels": blas.in_force(),
+        "kernels": kernels.in_force(),
         "packages": {name: v for name in KEY_PACKAGES if (v := _version(name))},
     }
 
@@ -64,14 +64,14 @@ def cpu_model() -> str:
 
 def other_cpu(measured: dict) -> str | None:
     """'was measured on <model>, this is <model>: ...' when the provenance `measured` names another CPU model than
-    this machine's, or other BLAS kernels than this process runs (riverbench.blas: the same model name can cover CPUs
+    this machine's, or other numeric kernels than this process runs (riverbench.kernels: the same model name can cover CPUs
     with and without AVX-512), else None (also when either is unknown)."""
     there, here = measured.get("cpu"), cpu_model()
     if there and here and there != here:
         return f"was measured on {there}, this is {here}: matcher-fed metrics may differ without a code change"
-    kernels_there, kernels_here = measured.get("blas_kernels"), blas.in_force()
+    kernels_there, kernels_here = measured.get("kernels"), kernels.in_force()
     if kernels_there and kernels_there != kernels_here:
-        return f"was measured with the BLAS kernels {kernels_there}, this runs {kernels_here}: matcher-fed metrics may differ without a code change"
+        return f"was measured with the kernels {kernels_there}, this runs {kernels_here}: matcher-fed metrics may differ without a code change"
     return None
 
 

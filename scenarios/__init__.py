@@ -7,7 +7,7 @@ scenarios.run(scenario, "runs/x")     -> RunResult (run directory, metrics, expe
 
 from __future__ import annotations
 
-import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the numeric kernels, riverbench.kernels)
 
 
 def available() -> list[str]:

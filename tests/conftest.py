@@ -1,7 +1,7 @@
 """Hypothesis draws the same examples on every run (the bench's determinism rule: CI is never flaky);
 `HYPOTHESIS_PROFILE=explore ./dev.sh test` searches with fresh random examples instead."""
 
-import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the numeric kernels, riverbench.kernels)
 
 # isort: split
 import os

@@ -9,7 +9,7 @@ worlds.describe(world)                  -> json-able summary
 
 from __future__ import annotations
 
-import riverbench  # noqa: F401  (first, before numpy loads: it pins the BLAS kernels, riverbench.blas)
+import riverbench  # noqa: F401  (first, before numpy loads: it pins the numeric kernels, riverbench.kernels)
 
 # isort: split
 

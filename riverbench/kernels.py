@@ -24,6 +24,8 @@ OPENBLAS_CORETYPE = "Haswell"
 """The OpenBLAS kernels every x86-64 run uses (AVX2 + FMA: any x86-64 CPU from 2013 on, Intel or AMD)."""
 NUMPY_DISABLED = "X86_V4 AVX512_ICL AVX512_SPR"
 """numpy's dispatched loops above x86-64-v3 (its names from numpy 2.4 on), which every run leaves unused."""
+SETTINGS = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES")
+"""The environment variables the two libraries read their kernel choice from when they load."""
 
 
 def _has_avx2_fma(cpuinfo: Path = Path("/proc/cpuinfo")) -> bool:
@@ -52,10 +54,10 @@ def pin(environ: dict[str, str] | None = None, cpuinfo: Path = Path("/proc/cpuin
         env.setdefault("OPENBLAS_CORETYPE", OPENBLAS_CORETYPE)
         if _numpy_names_levels():
             env.setdefault("NPY_DISABLE_CPU_FEATURES", NUMPY_DISABLED)
-    return {key: env[key] for key in ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES") if key in env}
+    return {key: env[key] for key in SETTINGS if key in env}
 
 
-_CHOSEN_BEFORE = {key: os.environ[key] for key in ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES") if key in os.environ}
+_CHOSEN_BEFORE = {key: os.environ[key] for key in SETTINGS if key in os.environ}
 """The kernel settings the user made for this process before riverbench loaded."""
 _NUMPY_LOADED_FIRST = "numpy" in sys.modules
 """Whether numpy had loaded (with whatever kernels it found) before riverbench could pin them in this process."""

@@ -13,7 +13,6 @@ import pytest
 from riverbench import kernels
 
 ROOT = Path(__file__).resolve().parents[1]
-SETTINGS = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES")
 COMPUTED = """
 import hashlib
 import numpy as np
@@ -32,7 +31,7 @@ AVX512 = X86_AVX2 and "avx512f" in Path("/proc/cpuinfo").read_text()
 
 def digest(prelude: str, **env: str) -> str:
     """The digest of COMPUTED in a fresh process after `prelude`, with the kernel settings only as `env` gives them."""
-    environ = {k: v for k, v in os.environ.items() if k not in SETTINGS} | {"PYTHONPATH": str(ROOT)} | env
+    environ = {k: v for k, v in os.environ.items() if k not in kernels.SETTINGS} | {"PYTHONPATH": str(ROOT)} | env
     done = subprocess.run([sys.executable, "-c", prelude + COMPUTED], env=environ, capture_output=True, text=True, check=True)
     return done.stdout.strip()
 
@@ -70,7 +69,7 @@ def test_a_cpu_without_avx2_or_an_unreadable_cpuinfo_is_left_to_the_libraries(tm
 
 @pytest.mark.skipif(
     not X86_AVX2
-    or any(kernels._CHOSEN_BEFORE.get(k, v) != v for k, v in zip(SETTINGS, (kernels.OPENBLAS_CORETYPE, kernels.NUMPY_DISABLED), strict=True)),
+    or any(kernels._CHOSEN_BEFORE.get(k, v) != v for k, v in zip(kernels.SETTINGS, (kernels.OPENBLAS_CORETYPE, kernels.NUMPY_DISABLED), strict=True)),
     reason="pinned on x86-64 with AVX2 unless the user chose",
 )
 def test_this_test_session_runs_the_pinned_kernels():

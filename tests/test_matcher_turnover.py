@@ -99,7 +99,6 @@ def test_a_chain_that_tilts_past_an_upright_boat_fails(step_deg):
         ((1.0, 0.0, 0.0), 0.67, 0.29, 0.5, True),  # beyond what the known speed can do: quickstart's ratchet at 2008.3 s
         ((1.0, 0.0, 0.0), 0.40, 0.29, 0.5, False),  # beyond the prior, within the speed's spread: measured travel
         ((1.0, 0.0, 0.0), 0.67, 0.29, 5.0, False),  # a speed known that loosely leaves the answer within it
-        ((1.0, 0.0, 0.0), 0.20, 0.0, 0.05, False),  # a stopped prior is the bias, however sure the speed (canal_multipath s2)
     ],
 )
 def test_gicp_keeps_its_prior_unless_the_answer_travels_beyond_it(direction, answer_m, prior_m, speed_sigma_mps, held):

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -32,6 +33,14 @@ over the baseline's seeds, by hand or before a release."""
 @pytest.mark.slow  # the library's fast variants on CI_SEEDS seeds, judged metric by metric against the committed baseline
 @pytest.mark.early
 def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
+    from riverbench import provenance
+    from scenarios.score import baseline as baselines
+
+    # Metric by metric only on the baseline's CPU model: with the pinned kernels an AVX-512 AMD EPYC reproduced the AVX2
+    # one's baseline exactly, but an Intel Xeon differs from the first chained matches on (every gps.* and open-loop
+    # vessel.* metric identical, hundreds of matcher-fed ones moved beyond the seeds' spread: docs/guide.md, Baselines).
+    # On another model the runs are still judged by every expectation; the metrics moved are named, not judged.
+    other = provenance.other_cpu(baselines.load(BASELINE).provenance)
     junit = tmp_path / "suite.xml"
     result = runner.invoke(
         app,
@@ -57,18 +66,23 @@ def test_the_library_passes_its_expectations_and_matches_its_baseline(tmp_path):
         for m in comparison["metrics"]
         if m["verdict"] in ("regressed", "improved") and m["gating"]
     ]
-    # an improvement not recorded in the baseline would let a later regression of the same size pass: refresh it
-    # (`riverbench suite --fast --save-baseline benchmarks/baseline/library.json`) in a commit naming the cause
-    assert result.exit_code == 0 and not moved, result.output + "\n".join(moved)
     assert not comparison["new_scenarios"] and not comparison["missing_scenarios"] and not comparison["failed_runs"]
     names = scenarios.available()
     suite = ET.parse(junit).getroot()
     expectations = sum(len(scenarios.load(n).fast_variant().expect) for n in names)
     assert int(suite.get("tests")) > (1 + expectations / len(names)) * len(names) * CI_SEEDS  # runs, expectations, families
-    assert suite.get("failures") == "0" and suite.get("errors") == "0"
     for name in names:
         assert (tmp_path / "runs" / name / "seed-0" / "report.html").is_file()
     assert (tmp_path / "runs" / "comparison" / "report.html").is_file()
+    failing = [f"{case['name']} seed {case['seed']}: {case['error'] or 'expectations'}" for case in summary["cases"] if not case["passed"]]
+    if other:
+        assert not failing, "\n".join(failing)
+        warnings.warn(f"the library baseline {other}; {len(moved)} gating metrics moved, not judged", stacklevel=1)
+        return
+    # an improvement not recorded in the baseline would let a later regression of the same size pass: refresh it
+    # (`riverbench suite --fast --save-baseline benchmarks/baseline/library.json`) in a commit naming the cause
+    assert result.exit_code == 0 and not moved, result.output + "\n".join(moved)
+    assert suite.get("failures") == "0" and suite.get("errors") == "0"
 
 
 def test_suite_fast_runs_what_the_baseline_ran_the_full_scenario_where_there_is_no_fast_table():

@@ -547,6 +547,12 @@ def study(
         "study's stretch and scored beside the built-ins in the findings they apply to (matchers: e, f, h; estimators: b, d)",
     ),
     findings_: str = typer.Option(None, "--findings", help="with --scenario: score the command components in these findings only, e.g. f,h"),
+    set_: list[str] = typer.Option(
+        [],
+        "--set",
+        help="override a field of the study's charles_river scenario under every setup: key=value (TOML value), "
+        "repeatable, e.g. vessel.wind_waves={wind_mps = 5.5, fetch_m = 3000.0} (the basin's chop at Boston's mean wind)",
+    ),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
     """The field study's findings beside the bench's measurements on the charles_river route, each with a verdict:
@@ -593,6 +599,7 @@ def study(
                     setups=setups,
                     commands=commands,
                     command_findings=keys,
+                    overrides=set_,
                 )
         except RuntimeError as exc:
             errors.print(f"[bold red]study failed:[/] {escape(one_line(exc))}", highlight=False, soft_wrap=True)

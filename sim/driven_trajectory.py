@@ -15,7 +15,6 @@ from riverbench.rng import stream
 from sim.dynamics import Manoeuvring, WamvDynamics
 from sim.plane_motion import PlaneMotion
 from sim.trajectory import TrajectoryConfig, VesselPoses, mount_matrix, wave_poses
-from sim.waves import WaveMotion
 
 STEP_S = 0.01
 """Integration step (RK4); the pose between two steps is interpolated linearly (error < 0.1 mm at 2 m/s)."""
@@ -42,7 +41,7 @@ class DrivenTrajectory(VesselPoses):
         self.model = Manoeuvring(dynamics, current_enu)
         rng = stream(config.seed, "sim.trajectory")
         rng.uniform(0.0, 2.0 * np.pi)  # the open-loop trajectory's speed phase: same waves for the same seed
-        self.waves = WaveMotion.from_sea_state(config.sea_state, rng, beam_m=config.hull.beam_m, length_m=config.hull.length_m)
+        self.waves = config.wave_motion(rng)
         self.mount = mount_matrix(config)
         x, y, yaw, u = start
         self._t = np.array([float(t0)])

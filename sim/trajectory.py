@@ -6,14 +6,14 @@ from functools import cached_property
 
 import numpy as np
 import trimesh
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
 from riverbench.rng import stream
 from sim.plane_motion import PlaneMotion
 from sim.vessel import HullConfig, hull_mesh
-from sim.waves import WaveMotion
+from sim.waves import WaveMotion, WindWaves
 from worlds.world import World
 
 
@@ -26,6 +26,11 @@ class TrajectoryConfig(BaseModel):
     speed_variation: float = Field(0.2, ge=0, lt=1, description="relative amplitude of the slow speed oscillation (0.2: 1.6-2.4 m/s at 2 m/s)")
     speed_period_s: float = Field(90.0, gt=0, description="period of the speed oscillation")
     sea_state: int = Field(0, ge=0, le=4, description="Douglas sea state; 0 is calm (no wave motion)")
+    wind_waves: WindWaves | None = Field(
+        None,
+        description="a fetch-limited wind sea instead of a sea state: {wind_mps, fetch_m} (sim.waves.WindWaves, the Coastal "
+        "Engineering Manual's growth laws) [None: the sea state's]",
+    )
     start_m: float = Field(0.0, ge=0, description="route station where the run starts")
     end_m: float | None = Field(None, gt=0, description="route station where the run ends (default: route end)")
     lateral_offset_m: float = Field(0.0, description="constant offset to the left of the route centreline")
@@ -33,6 +38,19 @@ class TrajectoryConfig(BaseModel):
     mount_rpy_deg: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="LiDAR roll, pitch, yaw on base_link (0: forward-facing, level)")
     hull: HullConfig = Field(default_factory=HullConfig, description="vessel body that occludes the LiDAR")
     seed: int = Field(0, description="seed of the speed-profile phase and the wave components")
+
+    @model_validator(mode="after")
+    def _one_sea(self) -> TrajectoryConfig:
+        if self.wind_waves is not None and self.sea_state != 0:
+            raise ValueError(f"give sea_state ({self.sea_state}) or wind_waves, not both: each sets the waves")
+        return self
+
+    def wave_motion(self, rng: np.random.Generator) -> WaveMotion:
+        """The vessel's wave motion, its components drawn from rng: the wind sea's if given, else the sea state's."""
+        hull = {"beam_m": self.hull.beam_m, "length_m": self.hull.length_m}
+        if self.wind_waves is not None:
+            return WaveMotion.from_wind(self.wind_waves, rng, **hull)
+        return WaveMotion.from_sea_state(self.sea_state, rng, **hull)
 
 
 class VesselPoses:
@@ -89,7 +107,7 @@ class Trajectory(VesselPoses):
             )
         rng = stream(cfg.seed, "sim.trajectory")
         self._speed_phase = float(rng.uniform(0.0, 2.0 * np.pi))
-        self.waves = WaveMotion.from_sea_state(cfg.sea_state, rng, beam_m=cfg.hull.beam_m, length_m=cfg.hull.length_m)
+        self.waves = cfg.wave_motion(rng)
         self.duration = float(brentq(lambda t: self.station(t) - self.end_m, 0.0, 10 * self.end_m / cfg.speed_mps))
         self.mount = mount_matrix(cfg)
 

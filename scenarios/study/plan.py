@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from scenarios.spec import library
+from scenarios.spec import overrides as overrides_
 from scenarios.spec.scenario import Scenario
 from scenarios.study.setups import FIELD_METHOD1_ID
 
@@ -58,16 +59,20 @@ def study_scenario(
     stretch_m: tuple[float, float] | None = None,
     receiver: dict | None = None,
     field_method1: dict | None = None,
+    overrides: list[str] | None = None,
 ) -> Scenario:
     """charles_river from the library with every matcher and no estimator (the study measures sensors and matchers);
     its expectations, which judge estimators, are left out. stretch_m: (start, end) route stations, default the whole route;
     receiver: [gnss] fields written over the library's (a setup's receiver, scenarios.study.setups); field_method1: pcl6d
-    parameters of the field study's Method 1, added as the matcher setups.FIELD_METHOD1_ID."""
+    parameters of the field study's Method 1, added as the matcher setups.FIELD_METHOD1_ID; overrides: `--set key=value`
+    assignments on that scenario (the conditions the study runs under: the vessel's waves, the LiDAR's foliage echoes, a
+    matcher's parameter), written before a setup's receiver, which wins on the fields it names."""
     data = library.read(SCENARIO)
     data = {k: v for k, v in data.items() if k not in ("expect", "fast", "matchers", "estimators")}
     data["matchers"] = [{"id": m, "kind": m} for m in MATCHERS]
     if field_method1 is not None:
         data["matchers"].append({"id": FIELD_METHOD1_ID, "kind": "pcl6d", "params": dict(field_method1)})
+    data = overrides_.apply(data, check_overrides(overrides or []))
     if receiver:
         data["gnss"] = {**data.get("gnss", {}), **receiver}
     data["estimators"] = []
@@ -78,11 +83,28 @@ def study_scenario(
     return library.validate(data, f"{SCENARIO}.toml")
 
 
-def component_scenario(seed: int | None, stretch_m: tuple[float, float] | None, receiver: dict, commands: list) -> Scenario:
+OWN_OPTIONS = {"seed": "--seed", "stretch": "--stretch", "estimators": "--scenario", "expect": None, "goals": None, "fast": None}
+"""Keys of the study's scenario a `--set` may not write: those its own options set, and those it leaves out."""
+
+
+def check_overrides(assignments: list[str]) -> list[str]:
+    """The study's `--set` assignments, a ValueError naming one that writes a key the study sets itself or leaves out."""
+    for text in assignments:
+        top = text.partition("=")[0].strip().split(".")[0]
+        if top in OWN_OPTIONS:
+            option = OWN_OPTIONS[top]
+            how = f"give {option} instead" if option else "the study judges the findings, not a scenario's expectations"
+            raise ValueError(f"--set {text!r}: the study sets {top!r} itself; {how}")
+    return assignments
+
+
+def component_scenario(
+    seed: int | None, stretch_m: tuple[float, float] | None, receiver: dict, commands: list, overrides: list[str] | None = None
+) -> Scenario:
     """The study's scenario (its stretch, seed and a setup's [gnss] fields) with the command components `commands`
     ((section, scenarios.spec.command.CommandSpec) pairs) as its only matchers and estimators: what
     scenarios.study.components runs them in."""
-    data = study_scenario(seed, stretch_m, receiver=receiver).resolved()
+    data = study_scenario(seed, stretch_m, receiver=receiver, overrides=overrides).resolved()
     data["matchers"] = [spec.model_dump(exclude_none=True) for section, spec in commands if section == "matchers"]
     data["estimators"] = [spec.model_dump(exclude_none=True) for section, spec in commands if section == "estimators"]
     return library.validate(data, f"{SCENARIO}.toml")

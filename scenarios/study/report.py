@@ -21,7 +21,9 @@ def blocks(tree: dict, images: dict[str, str]) -> list:
         Heading(1, "riverbench study: the field study's findings on the bench"),
         Text(tree["citation"], "meta"),
         Text(
-            f"scenario {sc['name']} (seed {sc['seed']}, hash {sc['hash']}), {sc['t_start']:.0f}-{sc['t_end']:.0f} s of the route; "
+            f"scenario {sc['name']} (seed {sc['seed']}, hash {sc['hash']}"
+            + "".join(f", --set {o}" for o in sc.get("overrides", []))
+            + f"), {sc['t_start']:.0f}-{sc['t_end']:.0f} s of the route; "
             f"{plan['bursts']} bursts of {plan['burst_scans']} revolutions every {plan['burst_spacing_s']:g} s (pcl6d on 1 in "
             f"{plan['pcl6d_every']}), {plan['chain_scans']} revolutions chained (1 in {plan['chain_stride']}); "
             f"measured in {run.get('measure_wall_s', 0.0):.0f} s "

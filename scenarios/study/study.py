@@ -63,30 +63,32 @@ def run_study(
     setups: tuple[str, ...] = SETUP_NAMES,
     commands: list[Component] | None = None,
     command_findings: tuple[str, ...] | None = None,
+    overrides: list[str] | None = None,
 ) -> tuple[Path, dict]:
     """Measure every finding under each of `setups` (scenarios.study.setups: the bench's, the field study's; stretch_m:
     route stations, default the whole route) and write the study directory (default runs/study-<UTC time>/); returns it
     and the study.json tree. `commands`: command components (scenarios.study.components.from_scenario) scored in the
-    findings they apply to (`command_findings`: only these), beside the built-ins. An out_dir that exists and is not
+    findings they apply to (`command_findings`: only these), beside the built-ins; `overrides`: `--set key=value`
+    assignments on the study's scenario under every setup (plan.study_scenario), stated in the report. An out_dir that exists and is not
     empty is a ValueError, as is a stretch off the route, an unknown setup or a command whose executable is missing."""
     plan = plan or StudyPlan()
     unknown = [name for name in setups if name not in SETUPS]
     if unknown or not setups:
         raise ValueError(f"study setups {list(setups)}: give one or more of {', '.join(SETUP_NAMES)}")
     field = SETUPS["field"].method1 if "field" in setups else None
-    scenario = study_scenario(seed, stretch_m, field_method1=field)
-    receivers = {name: study_scenario(seed, stretch_m, receiver=SETUPS[name].receiver) for name in setups}
+    scenario = study_scenario(seed, stretch_m, field_method1=field, overrides=overrides)
+    receivers = {name: study_scenario(seed, stretch_m, receiver=SETUPS[name].receiver, overrides=overrides) for name in setups}
     out = Path(out_dir) if out_dir is not None else default_out_dir()
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"output directory {out} exists and is not empty")
-    runs = component_runs(commands or [], setups, seed, stretch_m)
+    runs = component_runs(commands or [], setups, seed, stretch_m, overrides)
     for _, run_scenario in runs.values():
         external.check(run_scenario)  # a missing executable: one line before any work
     stack = assemble(scenario)  # checks the stretch before any work
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        tree = _measure_into(tmp, scenario, receivers, stack, plan, progress, runs, command_findings)
+        tree = _measure_into(tmp, scenario, receivers, stack, plan, progress, runs, command_findings, list(overrides or []))
         os.chmod(tmp, 0o755)  # mkdtemp made it private; a study directory is for everyone to read
         if out.exists():
             out.rmdir()
@@ -126,22 +128,32 @@ def chain_matcher(rates: dict, plan: StudyPlan) -> str:
     return adequate[0] if adequate else max(by_cost, key=lambda m: np.nan_to_num(rates[m]["success"]))
 
 
-def component_runs(commands: list[Component], setups: tuple[str, ...], seed: int | None, stretch_m) -> dict[str, tuple[list[Component], object]]:
+def component_runs(
+    commands: list[Component], setups: tuple[str, ...], seed: int | None, stretch_m, overrides: list[str] | None = None
+) -> dict[str, tuple[list[Component], object]]:
     """The runs of the command components, by setup: the matchers under the first setup only (the setups differ in the
     receiver alone), the estimators under each; (their components, the scenario that runs them)."""
     out = {}
     for i, name in enumerate(setups):
         mine = [c for c in commands if c.section == "estimators" or i == 0]
         if mine:
-            out[name] = (mine, component_scenario(seed, stretch_m, SETUPS[name].receiver, [(c.section, c.spec) for c in mine]))
+            out[name] = (mine, component_scenario(seed, stretch_m, SETUPS[name].receiver, [(c.section, c.spec) for c in mine], overrides))
     return out
 
 
 def _measure_into(
-    tmp: Path, scenario, receivers: dict, stack, plan: StudyPlan, progress: Progress | None, runs: dict, keys: tuple[str, ...] | None
+    tmp: Path,
+    scenario,
+    receivers: dict,
+    stack,
+    plan: StudyPlan,
+    progress: Progress | None,
+    runs: dict,
+    keys: tuple[str, ...] | None,
+    overrides: list[str],
 ) -> dict:
     """Both rounds of jobs, the command components' runs, every setup's findings and the study directory's files; the
-    study.json tree."""
+    study.json tree (its scenario node names the `--set` overrides the study ran under)."""
     wall_start = time.perf_counter()
     lidar = stack.lidar
     setups = list(receivers)
@@ -186,7 +198,14 @@ def _measure_into(
     tree = {
         "provenance": provenance.collect(),
         "citation": CITATION,
-        "scenario": {"name": SCENARIO, "seed": scenario.seed, "hash": scenario.hash, "t_start": stack.t_start, "t_end": stack.t_end},
+        "scenario": {
+            "name": SCENARIO,
+            "seed": scenario.seed,
+            "hash": scenario.hash,
+            "t_start": stack.t_start,
+            "t_end": stack.t_end,
+            "overrides": overrides,
+        },
         "plan": {**plan.as_dict(), "bursts": len(starts), "chain_scans": n_scans},
         "setups": {name: asdict(SETUPS[name]) for name in setups},
         "findings": findings,

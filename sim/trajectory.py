@@ -47,10 +47,10 @@ class TrajectoryConfig(BaseModel):
 
     def wave_motion(self, rng: np.random.Generator) -> WaveMotion:
         """The vessel's wave motion, its components drawn from rng: the wind sea's if given, else the sea state's."""
-        hull = {"beam_m": self.hull.beam_m, "length_m": self.hull.length_m}
+        beam, length = self.hull.beam_m, self.hull.length_m
         if self.wind_waves is not None:
-            return WaveMotion.from_wind(self.wind_waves, rng, **hull)
-        return WaveMotion.from_sea_state(self.sea_state, rng, **hull)
+            return WaveMotion.from_wind(self.wind_waves, rng, beam_m=beam, length_m=length)
+        return WaveMotion.from_sea_state(self.sea_state, rng, beam_m=beam, length_m=length)
 
 
 class VesselPoses:

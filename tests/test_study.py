@@ -11,6 +11,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -19,7 +20,8 @@ from scenarios.study import study as study_module
 from scenarios.study import verdicts
 from scenarios.study.findings import FINDINGS, by_key
 from scenarios.study.matcher_findings import compose, success_curve
-from scenarios.study.plan import StudyPlan, burst_starts, chain_pieces, parse_stretch
+from scenarios.study.plan import StudyPlan, burst_starts, chain_pieces, parse_stretch, study_scenario
+from scenarios.study.setups import SETUPS
 from scenarios.study.verdicts import Check, verdict
 
 runner = CliRunner()
@@ -186,6 +188,10 @@ def test_pieces_compose_into_one_chain():
         (["--stretch", "0:999999"], "stretch"),
         (["--seed", "-1"], "seed"),
         (["--setup", "nope"], "--setup"),
+        (["--set", "vessel.wind_wave=1"], "vessel.wind_wave"),
+        (["--set", "seed=3"], "--seed"),
+        (["--set", "expect=[]"], "expect"),
+        (["--set", "vessel.wind_waves={wind_mps = -1.0, fetch_m = 3000.0}"], "wind_mps"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
@@ -195,6 +201,15 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
     lines = [line for line in result.output.splitlines() if line.strip()]
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in result.output
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_set_changes_the_studys_conditions_and_a_setups_receiver_keeps_its_own_fields():
+    chop = "vessel.wind_waves={wind_mps = 5.5, fetch_m = 3000.0}"
+    field = study_scenario(receiver=SETUPS["field"].receiver, overrides=[chop, "gnss.rate_hz=10.0", 'gnss.profile="consumer"'])
+    assert field.vessel.wind_waves is not None and field.vessel.wind_waves.fetch_m == 3000.0
+    assert field.gnss.rate_hz == 10.0 and field.gnss.constellations == ("GPS",)  # the setup's sbas_gps wins on the profile
+    plain = study_scenario()
+    assert plain.vessel.wind_waves is None and study_scenario(overrides=[chop]).hash != plain.hash
 
 
 def test_a_non_empty_out_dir_is_refused(tmp_path):
@@ -448,3 +463,35 @@ def test_a_file_of_command_components_alone_is_enough(tmp_path):
     kiss = STACK[STACK.index("[[matchers]]") : STACK.index("[[estimators]]")]
     (tmp_path / "kiss.toml").write_text(kiss)
     assert [(c.section, c.id, c.findings) for c in from_scenario(tmp_path / "kiss.toml", ("gicp",))] == [("matchers", "kiss", ("e", "f", "h"))]
+
+
+def test_the_matching_causes_say_whether_the_lidar_tilts_between_revolutions(bend_trajectories):
+    """tilt_change measures the angle between the LiDAR's vertical axes one revolution apart: exactly zero on glassy
+    water, tenths of a degree in the basin's chop; the causes of f and g then name the chop instead of glassy water."""
+    from scenarios.study.causes import cause
+    from scenarios.study.matcher_findings import tilt_change
+
+    calm, chop = bend_trajectories
+    starts = np.linspace(5.0, 150.0, 40)
+    assert tilt_change(calm, starts, 0.1) == {"median": 0.0, "p90": 0.0, "n": 40}
+    tilted = tilt_change(chop, starts, 0.1)
+    assert 0.02 < tilted["median"] < 1.0 and tilted["p90"] >= tilted["median"]
+    f = {"band": (6000, 27000), "matchers": {"pcl6d": {"below_success": 0.25, "below_count": 200}}}
+    assert "glassy water" in cause("f", "field", "partly", f, tilt_change(calm, starts, 0.1))
+    assert "in the chop the LiDAR tilts" in cause("f", "field", "agrees", f, tilted)
+    g = {"pcl6d": {"outlier_share": {"median": 0.26, "p90": 0.6, "n": 100}}}
+    assert cause("g", "field", "disagrees", g, tilted).startswith("In the chop") and "26.0%" in cause("g", "field", "disagrees", g, tilted)
+    assert cause("g", "bench", "agrees", g, None).startswith("Consecutive revolutions overlap")
+
+
+@pytest.fixture(scope="module")
+def bend_trajectories():
+    from analytic_worlds import wall_world
+
+    from sim.trajectory import Trajectory
+    from worlds.route import Route
+    from worlds.world import World
+
+    base = wall_world()
+    world = World("bend", base.parts, Route.from_waypoints(np.array([[0, 0], [150, 0], [250, 80], [300, 200]]), 30.0, 30.0), base.origin)
+    return Trajectory(world, seed=4), Trajectory(world, seed=4, wind_waves={"wind_mps": 5.5, "fetch_m": 3000.0})

@@ -54,6 +54,18 @@ def test_waves_give_a_few_degrees_of_roll_and_pitch_and_decimetres_of_heave(bend
     assert 0.01 < np.abs(poses[:, 2, 3]).max() < 0.5
 
 
+def test_a_river_basins_chop_rolls_a_wamv_by_about_a_degree(bend_world):
+    """Boston's mean wind along the Charles River Basin's 3 km: a 0.14 m, 1.2 s chop whose waves, shorter than the hull,
+    roll and pitch it by tenths of a degree to a degree or two and barely heave it."""
+    traj = Trajectory(bend_world, seed=4, wind_waves={"wind_mps": 5.5, "fetch_m": 3000.0})
+    poses = traj.poses(np.linspace(0, 200, 8000))
+    ypr = Rotation.from_matrix(poses[:, :3, :3]).as_euler("ZYX", degrees=True)
+    assert 0.2 < ypr[:, 2].std() < 1.5 and 0.2 < ypr[:, 1].std() < 1.5
+    assert np.abs(poses[:, 2, 3]).max() < 0.05
+    calm = Trajectory(bend_world, seed=4).poses(np.linspace(0, 200, 8000))
+    np.testing.assert_allclose(calm[:, :2, 3], poses[:, :2, 3], atol=1e-9)  # the waves tilt and heave; the track is the route's
+
+
 def test_single_and_vectorised_poses_agree_and_lidar_pose_applies_the_mount(bend_world):
     traj = Trajectory(bend_world, sea_state=3, mount_xyz=(0.5, 0.0, 1.8), mount_rpy_deg=(0.0, 5.0, 0.0))
     ts = np.array([0.0, 3.3, 17.25])
@@ -88,6 +100,8 @@ def test_yaw_pitch_roll_matrix_equals_scipy(angles):
         ({"speed_mps": -1.0}, "speed_mps"),
         ({"sea_state": 9}, "sea_state"),
         ({"wind": 3}, "wind"),
+        ({"sea_state": 2, "wind_waves": {"wind_mps": 5.5, "fetch_m": 3000.0}}, "not both"),
+        ({"wind_waves": {"wind_mps": 5.5}}, "fetch_m"),
     ],
 )
 def test_bad_parameters_name_the_key(bend_world, kwargs, message):

@@ -22,7 +22,22 @@ def _range(values: list[float], fmt: str = ".1f") -> str:
     return lo if lo == hi else f"{lo}-{hi}"
 
 
-def cause_a(setup: str, verdict: str, m: dict) -> str:
+GLASSY_DEG = 0.01
+"""The LiDAR tilting less than this between revolutions (median) is glassy water: a ring meets a wall 80 m off within
+14 mm of where it met it a revolution earlier."""
+
+
+def _tilt(tilt: dict | None) -> float:
+    return math.nan if tilt is None else tilt["median"]
+
+
+def _tilted(tilt: dict | None) -> bool:
+    """Whether the vessel tilts between revolutions (waves), so that matching causes turn on it."""
+    value = _tilt(tilt)
+    return math.isfinite(value) and value >= GLASSY_DEG
+
+
+def cause_a(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """a: which receiver holds or loses the fix under the decks, and the satellites in direct sight there."""
     s = m["structures"]
     held = [name for name, v in s.items() if not v["blackout_s"] > 0.0]
@@ -38,7 +53,7 @@ def cause_a(setup: str, verdict: str, m: dict) -> str:
     )
 
 
-def cause_b(setup: str, verdict: str, m: dict) -> str:
+def cause_b(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """b: the wrong estimate is the receiver's coast and what re-acquisition gives; how fast the filter lets it go."""
     rows = m["outages"]
     if not rows:
@@ -73,7 +88,7 @@ def cause_b(setup: str, verdict: str, m: dict) -> str:
     return f"The wrong estimate: {coast}; " + "; ".join(parts) + "."
 
 
-def cause_c(setup: str, verdict: str, m: dict) -> str:
+def cause_c(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """c: HDOP follows the geometry of the satellites used, not the reflections' range bias."""
     return (
         f"HDOP is computed from the geometry of the satellites used, not from their range errors: a reflected signal "
@@ -83,7 +98,7 @@ def cause_c(setup: str, verdict: str, m: dict) -> str:
     )
 
 
-def cause_d(setup: str, verdict: str, m: dict) -> str:
+def cause_d(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """d: the receiver's own open-water error, and where facade reflections on direct signals add to it."""
     w = m["with_reflections"]
     where = " to ".join(w.get("between") or []) or "n/a"
@@ -103,7 +118,7 @@ def _f(value) -> float:
     return float(value) if value is not None and math.isfinite(value) else math.nan
 
 
-def cause_e(setup: str, verdict: str, m: dict) -> str:
+def cause_e(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """e: what sets Method 1's rate (its pre-alignment or not) and both methods' precision."""
     p, b = m.get("pcl6d", {}), m.get("bev3dof", {})
     precision = (
@@ -134,29 +149,45 @@ def cause_e(setup: str, verdict: str, m: dict) -> str:
     return f"{rate}; {precision}."
 
 
-def cause_f(setup: str, verdict: str, m: dict) -> str:
+def cause_f(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """f: how many registrations fall below the band and how they fare, and what the bench's crowns lack."""
     parts = ", ".join(f"{mid} {100 * _f(v['below_success']):.0f}% of {v['below_count']}" for mid, v in m["matchers"].items() if v["below_count"])
     lo = m["band"][0]
-    return (
+    head = (
         f"Most of the route's scans have fewer than {lo:,} points (the basin's banks and walls 60-100 m off, almost nothing "
-        f"from the water, docs/models.md 'Points per revolution'), and they still match ({parts} succeed by the matchers' "
-        f"own fitness and plausibility tests): two revolutions 0.1 s apart overlap almost entirely, and the tree crowns that "
-        f"give about half of those scans' points echo from 1.5 m facets that repeat like walls; with every leaf echo drawn "
-        f"afresh instead (lidar.foliage_echo = 'leaves') pcl6d fails about 80% below the band, as the study's Method 1 did, "
-        f"but its outlier share and the chained yaw then overshoot the study's (docs/models.md 'Foliage echoes'): how far "
-        f"real crowns' echoes repeat for a moving boat is what the bench lacks."
+        f"from the water, docs/models.md 'Points per revolution'), and "
+    )
+    if _tilted(tilt):
+        return head + (
+            f"in the chop the LiDAR tilts {_n(tilt['median'], '.2f')} deg (median, p90 {_n(tilt['p90'], '.2f')}) between "
+            f"revolutions 0.1 s apart, so a ring meets a wall 80 m off decimetres higher or lower each time and finds no "
+            f"partner there ({parts} succeed by the matchers' own fitness and plausibility tests): sparse scans are far "
+            f"scans, where a tilt moves the points most (docs/models.md 'Glassy water')."
+        )
+    return head + (
+        f"they still match ({parts} succeed by the matchers' own fitness and plausibility tests): on glassy water (the "
+        f"LiDAR tilts {_n(_tilt(tilt), '.2f')} deg between revolutions) two revolutions 0.1 s apart cross every surface "
+        f"along the same lines, and the tree crowns that give about half of those scans' points echo from 1.5 m facets that "
+        f"repeat like walls. The basin's chop at Boston's mean wind (--set vessel.wind_waves, docs/models.md 'Glassy water') "
+        f"makes pcl6d fail below the band as the study's Method 1 did, but in the band too, and its outlier share then "
+        f"overshoots the study's; every leaf echo drawn afresh (lidar.foliage_echo = 'leaves') does the same (docs/models.md "
+        f"'Foliage echoes'): the water and the crowns of the study's day are what the bench does not know."
     )
 
 
-def cause_g(setup: str, verdict: str, m: dict) -> str:
+def cause_g(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """g: the outlier shares the matchers report."""
     parts = "; ".join(f"{mid} {k} {100 * s['median']:.1f}%" for mid, node in m.items() for k, s in node.items())
     parts = parts or "none reported"
+    if _tilted(tilt):
+        return (
+            f"In the chop the LiDAR tilts {_n(tilt['median'], '.2f')} deg (median) between revolutions, so the rings of "
+            f"consecutive scans cross distant surfaces along other lines and more points find no partner: {parts}."
+        )
     return f"Consecutive revolutions overlap almost entirely and the simulated surfaces are exact, so few points find no partner: {parts}."
 
 
-def cause_h(setup: str, verdict: str, m: dict) -> str:
+def cause_h(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
     """h: the chained matcher's heading drift beside the compass."""
     return (
         f"{m['matcher']}'s steps each carry a small yaw error that integrates without a bound over the route "
@@ -169,9 +200,10 @@ CAUSES = {"a": cause_a, "b": cause_b, "c": cause_c, "d": cause_d, "e": cause_e, 
 """Each finding's cause, by key."""
 
 
-def cause(key: str, setup: str, verdict: str, m: dict) -> str:
-    """The finding's cause in one sentence with the numbers measured under `setup`."""
+def cause(key: str, setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
+    """The finding's cause in one sentence with the numbers measured under `setup`; `tilt`: how far the LiDAR tilts
+    between consecutive revolutions (matcher_findings.tilt_change), which the matching findings' causes turn on."""
     try:
-        return CAUSES[key](setup, verdict, m)
+        return CAUSES[key](setup, verdict, m, tilt)
     except (KeyError, TypeError, ValueError, IndexError):  # a short stretch lacks a figure: say so, never fail the study
         return "not enough data on this stretch to name the cause."

@@ -74,6 +74,19 @@ def success_curve(rows: list[dict], mids: list[str], band: tuple[int, int]) -> d
     return out
 
 
+def tilt_change(trajectory, starts: np.ndarray, revolution_s: float) -> dict:
+    """How far the LiDAR tilts between the first two revolutions of each burst (the angle between its vertical axes one
+    revolution apart, deg; median and p90): zero on glassy water, where consecutive revolutions cross every surface along
+    the same lines, and a fraction of a degree in a chop, where a ring meets a wall 80 m off 0.2 m higher or lower per
+    0.15 deg."""
+    if not len(starts):
+        return {"median": math.nan, "p90": math.nan, "n": 0}
+    t = np.asarray(starts, dtype=float)
+    a, b = trajectory.lidar_poses(t)[:, :3, 2], trajectory.lidar_poses(t + revolution_s)[:, :3, 2]
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)))
+    return {"median": float(np.median(angle)), "p90": float(np.percentile(angle, 90)), "n": int(len(angle))}
+
+
 def outliers(rows: list[dict], mids: list[str]) -> dict:
     """Finding g, per matcher and diagnostic it reports: the median and p90 share of points (or correspondences) rejected
     as outliers over its registrations (gicp's inlier_share turned into 1 - inlier_share); {} for a matcher reporting none."""

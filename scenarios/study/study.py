@@ -171,6 +171,9 @@ def _measure_into(
     rows = [row for chunk in first[len(setups) :] for row in chunk]
     structures = stack.world.params.get("structures", [])
     measured = {name: _measure_setup(name, gnss[name], rows, structures, plan) for name in setups}
+    tilt = matcher_findings.tilt_change(stack.trajectory, starts, lidar.revolution_s)
+    for name in setups:
+        measured[name]["f"]["tilt_change_deg"] = tilt  # the vessel's motion, the same under both setups
     mid = chain_matcher(measured[setups[0]]["e"], plan)
     round2 = [("chain", (scenario, mid, a, b, plan.chain_stride)) for a, b in pieces] + [("compass", scenario)]
     round1_wall_s = time.perf_counter() - wall_start
@@ -302,7 +305,7 @@ def _judged(setup: str, measured: dict) -> dict:
         out[x.key] = {
             "verdict": v,
             "headline": headline(x.key, measured[x.key]),
-            "cause": causes.cause(x.key, setup, v, measured[x.key]),
+            "cause": causes.cause(x.key, setup, v, measured[x.key], measured["f"].get("tilt_change_deg")),
             "checks": [c.as_dict() for c in checks],
             "measured": measured[x.key],
         }

@@ -190,7 +190,10 @@ def test_pieces_compose_into_one_chain():
         (["--setup", "nope"], "--setup"),
         (["--set", "vessel.wind_wave=1"], "vessel.wind_wave"),
         (["--set", "seed=3"], "--seed"),
+        (["--set", "nokey"], "key=value"),
         (["--set", "expect=[]"], "expect"),
+        (["--set", "matchers=[]"], "matchers.gicp.params"),
+        (["--set", 'world="canal_lock"'], "charles_river"),
         (["--set", "vessel.wind_waves={wind_mps = -1.0, fetch_m = 3000.0}"], "wind_mps"),
     ],
 )

@@ -83,18 +83,31 @@ def study_scenario(
     return library.validate(data, f"{SCENARIO}.toml")
 
 
-OWN_OPTIONS = {"seed": "--seed", "stretch": "--stretch", "estimators": "--scenario", "expect": None, "goals": None, "fast": None}
-"""Keys of the study's scenario a `--set` may not write: those its own options set, and those it leaves out."""
+OWN_OPTIONS = {
+    "seed": "give --seed instead",
+    "stretch": "give --stretch instead",
+    "estimators": "give --scenario FILE for estimators of your own",
+    "expect": "the study judges the findings, not a scenario's expectations",
+    "goals": "the study judges the findings, not a scenario's goals",
+    "fast": "the study runs the route or --stretch",
+    "world": "the study is the charles_river route's",
+}
+"""Keys of the study's scenario a `--set` may not write (those its own options set, those it leaves out, the world the
+findings are about), each with what to do instead; the matchers only by id (`matchers.gicp.params.voxel_m`), never the
+list the findings are measured with."""
 
 
 def check_overrides(assignments: list[str]) -> list[str]:
     """The study's `--set` assignments, a ValueError naming one that writes a key the study sets itself or leaves out."""
     for text in assignments:
-        top = text.partition("=")[0].strip().split(".")[0]
+        key = text.partition("=")[0].strip()
+        top = key.split(".")[0]
         if top in OWN_OPTIONS:
-            option = OWN_OPTIONS[top]
-            how = f"give {option} instead" if option else "the study judges the findings, not a scenario's expectations"
-            raise ValueError(f"--set {text!r}: the study sets {top!r} itself; {how}")
+            raise ValueError(f"--set {text!r}: the study sets {top!r} itself; {OWN_OPTIONS[top]}")
+        if key == "matchers":
+            raise ValueError(
+                f"--set {text!r}: the study runs its own matchers; set one's parameters by its id, e.g. matchers.gicp.params.voxel_m=0.4"
+            )
     return assignments
 
 

@@ -468,13 +468,13 @@ def test_a_file_of_command_components_alone_is_enough(tmp_path):
     assert [(c.section, c.id, c.findings) for c in from_scenario(tmp_path / "kiss.toml", ("gicp",))] == [("matchers", "kiss", ("e", "f", "h"))]
 
 
-def test_the_matching_causes_say_whether_the_lidar_tilts_between_revolutions(bend_trajectories):
+def test_the_matching_causes_say_whether_the_lidar_tilts_between_revolutions(calm_and_chop):
     """tilt_change measures the angle between the LiDAR's vertical axes one revolution apart: exactly zero on glassy
     water, tenths of a degree in the basin's chop; the causes of f and g then name the chop instead of glassy water."""
     from scenarios.study.causes import cause
     from scenarios.study.matcher_findings import tilt_change
 
-    calm, chop = bend_trajectories
+    calm, chop = calm_and_chop
     starts = np.linspace(5.0, 150.0, 40)
     assert tilt_change(calm, starts, 0.1) == {"median": 0.0, "p90": 0.0, "n": 40}
     tilted = tilt_change(chop, starts, 0.1)
@@ -488,13 +488,10 @@ def test_the_matching_causes_say_whether_the_lidar_tilts_between_revolutions(ben
 
 
 @pytest.fixture(scope="module")
-def bend_trajectories():
+def calm_and_chop():
     from analytic_worlds import wall_world
 
     from sim.trajectory import Trajectory
-    from worlds.route import Route
-    from worlds.world import World
 
-    base = wall_world()
-    world = World("bend", base.parts, Route.from_waypoints(np.array([[0, 0], [150, 0], [250, 80], [300, 200]]), 30.0, 30.0), base.origin)
+    world = wall_world()
     return Trajectory(world, seed=4), Trajectory(world, seed=4, wind_waves={"wind_mps": 5.5, "fetch_m": 3000.0})

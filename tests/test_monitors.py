@@ -117,15 +117,19 @@ def test_window_test_cancels_a_constant_bias(bx, by, yaw):
         for mon, xy in ((unbiased, truth), (biased, truth + [bx, by])):
             verdicts.append(mon.check(_obs(float(t), xy), ctx))
             mon.commit(_obs(float(t), xy), verdicts[-1])
-        assert verdicts[0].trusted == verdicts[1].trusted == (t >= 5.0)  # start-up guard, then trusted
-        assert verdicts[0].rule == verdicts[1].rule == ("" if t >= 5.0 else "consistency.guard")  # the rule that refused it
+        # start-up guard: its window test can be made from half a window (1 s) after the first fix, and five (guard_n)
+        # consecutive passes at 5 Hz end it at 2 s; then trusted
+        assert verdicts[0].trusted == verdicts[1].trusted == (t >= 2.0)
+        assert verdicts[0].rule == verdicts[1].rule == ("" if t >= 2.0 else "consistency.guard")  # the rule that refused it
         assert np.allclose(verdicts[0].statistic, verdicts[1].statistic, equal_nan=True, atol=1e-6)
 
 
 def test_without_the_start_up_guard_the_first_fixes_are_judged_and_an_outage_still_starts_the_guard():
     """startup_guard=False (the default): on a straight run at 2 m/s with fixes on the truth, the fixes are trusted from the first one
-    (no window or reference to test yet, then both pass); a 3 s gap in the fixes still starts the guard for guard_s, and
-    so does the first fix of a host that started from a given pose (FixContext.own_start)."""
+    (no window or reference to test yet, then both pass); a 3 s gap in the fixes still starts the guard, which the
+    reference carried over the gap ends after five (guard_n) consistent fixes, 1 s at 5 Hz; so does the first fix of a
+    host that started from a given pose (FixContext.own_start), which has no reference yet: its window test can be made
+    from half a window (1 s) on, so five passes end it at 2 s. With guard_s = 5 (a fixed wait) both last 5 s."""
     track = OdometryTrack()
     for t in np.arange(0.0, 30.0, 0.1):
         track.add(float(t), np.array([0.2, 0.0, 0.0]), np.diag([1e-4, 1e-4, 1e-6]))
@@ -137,8 +141,8 @@ def test_without_the_start_up_guard_the_first_fixes_are_judged_and_an_outage_sti
         verdicts[round(float(t), 1)] = v = mon.check(obs, ctx)
         mon.commit(obs, v)
     assert all(v.trusted for t, v in verdicts.items() if t < 10.0)
-    assert all(not v.trusted and v.rule == "consistency.guard" for t, v in verdicts.items() if 13.0 <= t < 17.9)
-    assert all(v.trusted for t, v in verdicts.items() if t >= 18.1)
+    assert all(not v.trusted and v.rule == "consistency.guard" for t, v in verdicts.items() if 13.0 <= t < 13.9)
+    assert all(v.trusted for t, v in verdicts.items() if t >= 13.9)
     # a host that started from a given pose holds a position of its own from the first fix: guarded from there
     own = monitors.create("consistency", startup_guard=False)
     own_ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, own_start=True)
@@ -147,7 +151,12 @@ def test_without_the_start_up_guard_the_first_fixes_are_judged_and_an_outage_sti
         obs = _obs(float(t), [2.0 * t, 0.0])
         first.append((round(float(t), 1), v := own.check(obs, own_ctx)))
         own.commit(obs, v)
-    assert all(not v.trusted for t, v in first if t < 4.9) and all(v.trusted for t, v in first if t >= 5.1)
+    assert all(not v.trusted for t, v in first if t < 1.9) and all(v.trusted for t, v in first if t >= 1.9)
+    waited = monitors.create("consistency", startup_guard=False, guard_s=5.0)
+    for t in np.arange(0.0, 8.0, 0.2):
+        obs = _obs(float(t), [2.0 * t, 0.0])
+        assert (v := waited.check(obs, own_ctx)).trusted == (t >= 4.9)
+        waited.commit(obs, v)
 
 
 def test_registry_validates_names_and_parameters():
@@ -258,15 +267,17 @@ def test_a_filter_velocity_the_filter_itself_doubts_does_not_refuse_good_fixes()
     velocity variance along that direction: the good fixes pass it once the re-acquisition guard is over. The price, held
     here: while the host doubts its speed, a ramp's first metres pass the window test too (an 8 m/s walk-back: its fixes
     6.4 and 8.0 m off), and a host never corrected (here no trusted fix updates it, as it would the ekf) drags the
-    reference along; the ramp's climb is refused. The stream's start stands for the re-acquisition (startup_guard)."""
+    reference along; the ramp's climb is refused. The stream's start stands for the re-acquisition (startup_guard), with
+    the fixed 5 s wait the trace ran with (guard_s = 5): the ramp then meets the drifting reference where it did."""
     track = _along_a_wall()
+    waited = {"startup_guard": True, "guard_s": 5.0}
     wrong = np.array([3.7, 0.0])  # the vessel makes 2 m/s east
-    assert not any(v.trusted for t, v in _feed(monitors.create("consistency", startup_guard=True), track, lambda t: 0.0, velocity=wrong) if t >= 5.0)
+    assert not any(v.trusted for t, v in _feed(monitors.create("consistency", **waited), track, lambda t: 0.0, velocity=wrong) if t >= 5.0)
     doubted = np.diag([0.9**2, 0.3**2])
-    verdicts = _feed(monitors.create("consistency", startup_guard=True), track, lambda t: 0.0, velocity=wrong, velocity_cov=doubted)
+    verdicts = _feed(monitors.create("consistency", **waited), track, lambda t: 0.0, velocity=wrong, velocity_cov=doubted)
     assert all(v.trusted for t, v in verdicts if 5.2 <= t < 7.0)  # after the guard (5 s), before the reference drifts
     ramp = lambda t: 0.0 if t < 20.0 else min(8.0 * (t - 20.0), 40.0)
-    verdicts = _feed(monitors.create("consistency", startup_guard=True), track, ramp, velocity=wrong, velocity_cov=doubted)
+    verdicts = _feed(monitors.create("consistency", **waited), track, ramp, velocity=wrong, velocity_cov=doubted)
     assert not any(v.trusted for t, v in verdicts if 21.1 <= t < 25.0)
 
 

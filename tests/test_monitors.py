@@ -126,10 +126,11 @@ def test_window_test_cancels_a_constant_bias(bx, by, yaw):
 
 def test_without_the_start_up_guard_the_first_fixes_are_judged_and_an_outage_still_starts_the_guard():
     """startup_guard=False (the default): on a straight run at 2 m/s with fixes on the truth, the fixes are trusted from the first one
-    (no window or reference to test yet, then both pass); a 3 s gap in the fixes still starts the guard, which the
-    reference carried over the gap ends after five (guard_n) consistent fixes, 1 s at 5 Hz; so does the first fix of a
-    host that started from a given pose (FixContext.own_start), which has no reference yet: its window test can be made
-    from half a window (1 s) on, so five passes end it at 2 s. With guard_s = 5 (a fixed wait) both last 5 s."""
+    (no window or reference to test yet, then both pass); a 3 s gap in the fixes still starts the guard, and so does the
+    first fix of a host that started from a given pose (FixContext.own_start). The guard's evidence is the window test,
+    which can be made from half a window (1 s) after the gap's first fix on: five (guard_n) consistent fixes at 5 Hz then
+    end it, about 2 s after the gap (the reference carried over the gap is no evidence alone). With guard_s = 5 (a fixed
+    wait) it lasts 5 s."""
     track = OdometryTrack()
     for t in np.arange(0.0, 30.0, 0.1):
         track.add(float(t), np.array([0.2, 0.0, 0.0]), np.diag([1e-4, 1e-4, 1e-6]))
@@ -141,8 +142,8 @@ def test_without_the_start_up_guard_the_first_fixes_are_judged_and_an_outage_sti
         verdicts[round(float(t), 1)] = v = mon.check(obs, ctx)
         mon.commit(obs, v)
     assert all(v.trusted for t, v in verdicts.items() if t < 10.0)
-    assert all(not v.trusted and v.rule == "consistency.guard" for t, v in verdicts.items() if 13.0 <= t < 13.9)
-    assert all(v.trusted for t, v in verdicts.items() if t >= 13.9)
+    assert all(not v.trusted and v.rule == "consistency.guard" for t, v in verdicts.items() if 13.0 <= t < 15.1)
+    assert all(v.trusted for t, v in verdicts.items() if t >= 15.1)
     # a host that started from a given pose holds a position of its own from the first fix: guarded from there
     own = monitors.create("consistency", startup_guard=False)
     own_ctx = FixContext(predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, own_start=True)
@@ -349,3 +350,26 @@ def test_combined_shadow_is_registered_and_maps_the_scans():
     assert [m.name for m in mon.members] == ["consistency", "shadow"] and mon.wants_scans
     assert fusion.create("ekf", monitor="combined_shadow").wants_scans
     assert not fusion.create("ekf").wants_scans  # the default, combined_cn0
+
+
+def test_after_an_outage_the_guard_waits_for_the_receivers_own_track_to_move_with_the_odometry():
+    """dam_lock_inertial seed 2 at 2379-2383 s: after a 4 s outage at the lock the receiver's first fixes came back 7.5 m
+    off and walked back over 2 s. The reference, carried over the outage along a direction the matches left unobserved,
+    was as uncertain as that and passed them, and five passes ended the guard: the ekf took fixes 5-7.5 m off. The
+    guard's evidence is now the receiver's own track over a window, from half a window after the gap on; a walk-back
+    moves against the odometry and fails it. Here the host doubts its speed along the unobserved direction (1.5 m/s), so
+    the reference carried over the 4 s outage passes a fix 7 m off; the fixes come back 7 m ahead and walk back at
+    3.5 m/s: none of them is trusted, and the fixes on the truth after it are, within 2.5 s (a fixed 5 s wait: 5 s)."""
+    track = _along_a_wall(until=41.0)
+    ctx = FixContext(
+        predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0,
+        velocity=np.array([2.0, 0.0]), velocity_cov=np.diag([1.5**2, 0.1**2]),
+    )  # fmt: skip
+    walk_back = lambda t: max(0.0, 7.0 - 3.5 * (t - 24.0))  # 7 m at the first fix after the outage, 0 from 26 s
+    mon, verdicts = monitors.create("consistency"), []
+    for t in [*np.arange(0.0, 20.0, 0.2), *np.arange(24.0, 34.0, 0.2)]:
+        obs = _obs(float(t), [2.0 * t + (walk_back(t) if t >= 24.0 else 0.0), 0.0], sigma=0.5)
+        verdicts.append((round(float(t), 1), walk_back(t) if t >= 24.0 else 0.0, v := mon.check(obs, ctx)))
+        mon.commit(obs, v)
+    assert not any(v.trusted for t, off, v in verdicts if t >= 24.0 and off > 0.5)
+    assert all(v.trusted for t, off, v in verdicts if t >= 28.5)

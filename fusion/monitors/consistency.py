@@ -12,9 +12,10 @@ world by the filter's heading with its variance):
 Guard: after a stretch of at least `gap_s` without a measured fix (a blackout; start-up too with `startup_guard`), the
 receiver's own filter may carry a wrong estimate that it smooths back slowly; fixes stay
 untrusted until `guard_n` consecutive fixes pass both tests at the tighter `guard_gate_prob` gate
-(the receiver's track moves with the odometry again and agrees with the reference; a fix with
-neither a window fix nor a reference to test is no evidence), and for at least `guard_s` (0 by
-default: the evidence ends it). The window test for the verdict uses trusted fixes only, so the end of a fault is
+(the receiver's track moves with the odometry again and agrees with the reference; only a fix
+with a window test, half a window after the gap or later, is evidence: the reference alone, carried
+over the outage as uncertain as the dead reckoning, passes a walk-back's first metres), and for at
+least `guard_s` (0 by default: the evidence ends it). The window test for the verdict uses trusted fixes only, so the end of a fault is
 not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard. Where the window holds no
 anchor (every fix there refused on this monitor's tests), the verdict's window test is against the fix there all the
 same: a receiver whose filter walks back from a reflected fix moves its output metres per second against the vessel's
@@ -74,11 +75,11 @@ class ConsistencyParams(BaseModel):
         0.0,
         ge=0,
         description="fixes stay untrusted for at least this long after such a gap, s [0: the evidence alone ends the guard, "
-        "guard_n consecutive fixes passing both tests under the guard gate, i.e. the receiver's track moves with the "
-        "odometry again and agrees with the reference; a receiver still walking back moves against the odometry and fails "
-        "them. A fixed 5 s wait refused fixes that already passed, while the host dead-reckoned on: library [fast], seed 0, "
-        "ekf APE p95 quickstart 2.14 -> 1.11 m, charles_river 1.04 -> 0.84 m, blinding 1.49 -> 1.23 m, no fault > 5 m "
-        "trusted more; docs/models.md 'A guard that waits for evidence, not time']",
+        "guard_n consecutive fixes whose window test passes the guard gate (and the reference test where there is one), "
+        "i.e. the receiver's own track moves with the odometry again; a receiver still walking back moves against it. A "
+        "fixed 5 s wait refused fixes that already passed while the host dead-reckoned on (quickstart [fast] seed 0: a "
+        "step past the deck's edge took the ekf 3.8 m off during it); docs/models.md 'A guard that waits for evidence, "
+        "not time']",
     )
     startup_guard: bool = Field(
         False,
@@ -138,7 +139,7 @@ class ConsistencyMonitor(Monitor):
         self._last_measured: float | None = None
         self._guard_start: float | None = None
         self._guard_passes = 0
-        self._pending: tuple[bool, tuple | None, float, float] = (False, None, math.nan, 1.0)
+        self._pending: tuple[bool, tuple | None, float, float, float] = (False, None, math.nan, math.nan, 1.0)
 
     def _moved(self, t_a: float, t_b: float, ctx: FixContext, since: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance; `since` (default t_a):
@@ -234,7 +235,7 @@ class ConsistencyMonitor(Monitor):
         weight = 1.0
         if ctx.correlation_s > 0 and self._last_measured is not None:
             weight = min(1.0, max(obs.stamp - self._last_measured, 1e-3) / ctx.correlation_s)
-        self._pending = (gap, ref, max([d for d in (guard_d2, ref_d2) if not math.isnan(d)], default=math.nan), weight)
+        self._pending = (gap, ref, guard_d2, ref_d2, weight)
         steady = guard_d2 <= self.guard_gate  # moves with the odometry since the fix a window earlier (NaN: unknown, not steady)
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
@@ -253,14 +254,17 @@ class ConsistencyMonitor(Monitor):
         return Verdict(True, statistic, "displacement consistent", steady=steady)
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
-        gap, ref, guard_d2, weight = self._pending
+        gap, ref, guard_d2, ref_d2, weight = self._pending
         if gap:
             self._guard_start, self._guard_passes = obs.stamp, 0
             self._history.clear()
         if self._guard_start is not None:
-            # a fix with neither a window fix nor a reference to compare (nan) is no evidence either way
+            # the evidence is the receiver's own track over a window (a walk-back moves it against the odometry), from
+            # half a window after the gap on: until then a fix is none either way, whatever the reference says (carried
+            # over the outage, it is as uncertain as the dead reckoning and passes a walk-back's first metres)
             if not math.isnan(guard_d2):
-                self._guard_passes = self._guard_passes + 1 if guard_d2 <= self.guard_gate else 0
+                passed = guard_d2 <= self.guard_gate and not ref_d2 > self.guard_gate
+                self._guard_passes = self._guard_passes + 1 if passed else 0
             if obs.stamp - self._guard_start >= self.params.guard_s and self._guard_passes >= self.params.guard_n:
                 self._guard_start = None
         self._last_measured = obs.stamp

@@ -139,7 +139,7 @@ class ConsistencyMonitor(Monitor):
         self._last_measured: float | None = None
         self._guard_start: float | None = None
         self._guard_passes = 0
-        self._pending: tuple[bool, tuple | None, float, float, float] = (False, None, math.nan, math.nan, 1.0)
+        self._pending: tuple[bool, tuple | None, bool | None, float] = (False, None, None, 1.0)
 
     def _moved(self, t_a: float, t_b: float, ctx: FixContext, since: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance; `since` (default t_a):
@@ -235,8 +235,12 @@ class ConsistencyMonitor(Monitor):
         weight = 1.0
         if ctx.correlation_s > 0 and self._last_measured is not None:
             weight = min(1.0, max(obs.stamp - self._last_measured, 1e-3) / ctx.correlation_s)
-        self._pending = (gap, ref, guard_d2, ref_d2, weight)
         steady = guard_d2 <= self.guard_gate  # moves with the odometry since the fix a window earlier (NaN: unknown, not steady)
+        # the guard's evidence is the receiver's own track over a window (a walk-back moves it against the odometry), from
+        # half a window after the gap on: until then a fix is none either way (None), whatever the reference says (carried
+        # over the outage, it is as uncertain as the dead reckoning and passes a walk-back's first metres)
+        evidence = None if math.isnan(guard_d2) else steady and not ref_d2 > self.guard_gate
+        self._pending = (gap, ref, evidence, weight)
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
@@ -254,17 +258,13 @@ class ConsistencyMonitor(Monitor):
         return Verdict(True, statistic, "displacement consistent", steady=steady)
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
-        gap, ref, guard_d2, ref_d2, weight = self._pending
+        gap, ref, evidence, weight = self._pending
         if gap:
             self._guard_start, self._guard_passes = obs.stamp, 0
             self._history.clear()
         if self._guard_start is not None:
-            # the evidence is the receiver's own track over a window (a walk-back moves it against the odometry), from
-            # half a window after the gap on: until then a fix is none either way, whatever the reference says (carried
-            # over the outage, it is as uncertain as the dead reckoning and passes a walk-back's first metres)
-            if not math.isnan(guard_d2):
-                passed = guard_d2 <= self.guard_gate and not ref_d2 > self.guard_gate
-                self._guard_passes = self._guard_passes + 1 if passed else 0
+            if evidence is not None:
+                self._guard_passes = self._guard_passes + 1 if evidence else 0
             if obs.stamp - self._guard_start >= self.params.guard_s and self._guard_passes >= self.params.guard_n:
                 self._guard_start = None
         self._last_measured = obs.stamp

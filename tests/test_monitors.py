@@ -242,6 +242,23 @@ def test_a_receivers_walk_back_from_a_refused_ramp_is_refused_until_it_has_settl
     assert any(v.trusted for t, v in verdicts if t > 60.0)  # back on GPS once the fixes move with the vessel again
 
 
+def test_a_walk_back_after_a_long_refused_stretch_meets_the_tighter_gate():
+    """quickstart seed 4 at 1771.9 s: after 20 s of refused fixes beside a quay (a reflected ramp to 48 m), the receiver
+    walked back at 1-1.5 m/s along the quay, where the host's speed is doubted: the window test saw 3 m in 2 s within its
+    gate (13.5 < 13.8), the reference, carried 20 s along the quay, passed 25 m at its 11 m sigma, and the ekf went 5.5 ->
+    29.9 m off. After refused_s of refusals both tests take the guard's gate until a fix passes: the plateau and the
+    walk-back stay refused (with the verdict's gate alone, refused_s never reached, a fix 45 m off passes at 13.7 against
+    13.8), and the good fixes after it are trusted within a second."""
+    ramp = lambda t: float(np.interp(t, [10.0, 25.0, 32.0, 62.0], [0.0, 45.0, 45.0, 0.0]))
+    doubted = {"velocity": np.array([2.0, 0.0]), "velocity_cov": np.diag([0.45**2, 0.1**2]), "until": 75.0}
+    track = _along_a_wall(until=76.0)
+    before = _feed(monitors.create("consistency", refused_s=1e9), track, ramp, **doubted)
+    assert any(v.trusted for t, v in before if ramp(t) > 6.0)
+    verdicts = _feed(monitors.create("consistency"), track, ramp, **doubted)
+    assert not any(v.trusted for t, v in verdicts if ramp(t) > 6.0)
+    assert all(v.trusted for t, v in verdicts if t >= 63.0)
+
+
 def test_a_constant_velocity_run_along_an_unobserved_direction_is_trusted():
     """The bound does not refuse good fixes where the extrapolation holds."""
     verdicts = _feed(monitors.create("consistency"), _along_a_wall(), lambda t: 0.0)

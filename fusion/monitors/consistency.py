@@ -15,7 +15,14 @@ untrusted until `guard_n` consecutive fixes pass both tests at the tighter `guar
 (the receiver's track moves with the odometry again and agrees with the reference; only a fix
 with a window test, half a window after the gap or later, is evidence: the reference alone, carried
 over the outage as uncertain as the dead reckoning, passes a walk-back's first metres), and for at
-least `guard_s` (0 by default: the evidence ends it). The window test for the verdict uses trusted fixes only, so the end of a fault is
+least `guard_s` (0 by default: the evidence ends it).
+After a stretch of at least `refused_s` in which every fix failed these tests, the host has dead-reckoned as through a
+blackout and the receiver may be walking back from the fault it carried, while the reference, carried as long, has
+grown as loose as the walk-back: until a fix passes, it also needs the guard's evidence, its own track steady over the
+window (against the fix there, whatever its verdict: the anchors there are fixes refused on C/N0 during the fault, which
+carry it) and the reference within the guard's tighter gate (a walk-back of a metre a second or more fails it; a good
+fix passes with the gate's probability, 0.9).
+The window test for the verdict uses trusted fixes only, so the end of a fault is
 not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard. Where the window holds no
 anchor (every fix there refused on this monitor's tests), the verdict's window test is against the fix there all the
 same: a receiver whose filter walks back from a reflected fix moves its output metres per second against the vessel's
@@ -81,6 +88,17 @@ class ConsistencyParams(BaseModel):
         "step past the deck's edge took the ekf 3.8 m off during it); docs/models.md 'A guard that waits for evidence, "
         "not time']",
     )
+    refused_s: float = Field(
+        2.0,
+        gt=0,
+        description="after a stretch at least this long in which every fix failed this monitor's tests, a fix also needs "
+        "the guard's evidence (steady over the window, the reference within guard_gate_prob) until one passes, s [2, as "
+        "gap_s: the host has dead-reckoned "
+        "as long as through a blackout, the reference has grown as loose, and the receiver that carried the fault may "
+        "be walking back from it: quickstart seed 4 at 1771.9 s, after 20 s of refusals, a fix 25 m off passed the "
+        "window test at 13.5 (walking back 1.5 m/s) and the reference at its along-quay sigma of 11 m, and the ekf went "
+        "5.5 -> 29.9 m off; docs/models.md 'Evidence after a refused stretch']",
+    )
     startup_guard: bool = Field(
         False,
         description="the guard also runs from the first fix and after a reset (the host's re-lock) [False: only after an "
@@ -133,13 +151,14 @@ class ConsistencyMonitor(Monitor):
         self.reset()
 
     def reset(self) -> None:
-        self._history: deque[tuple[FixObservation, bool]] = deque()  # recent fixes and whether an anchor (trusted or refused on its own evidence)
+        self._history: deque[tuple[FixObservation, str]] = deque()  # recent fixes and verdicts: trusted, own (refused on its own evidence), refused
         self._ref: tuple[float, np.ndarray, np.ndarray] | None = None  # stamp, antenna xy, 2x2 cov
         self._ref_trusted_at = -math.inf
         self._last_measured: float | None = None
         self._guard_start: float | None = None
         self._guard_passes = 0
-        self._pending: tuple[bool, tuple | None, bool | None, float] = (False, None, None, 1.0)
+        self._refused_since: float | None = None  # first fix of the current stretch that failed this monitor's tests
+        self._pending: tuple[bool, tuple | None, bool | None, float, bool] = (False, None, None, 1.0, False)
 
     def _moved(self, t_a: float, t_b: float, ctx: FixContext, since: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance; `since` (default t_a):
@@ -204,12 +223,12 @@ class ConsistencyMonitor(Monitor):
             return obs.stamp, xy, cov + np.eye(2) * spread
         return obs.stamp, xy + moved[0], cov + moved[1]
 
-    def _window_reference(self, stamp: float, anchors_only: bool) -> FixObservation | None:
-        """The kept fix nearest to `window_s` before stamp (within half to twice that), or None; with anchors_only, among
-        the fixes trusted or refused on their own evidence only."""
+    def _window_reference(self, stamp: float, verdicts: tuple[str, ...] = ("trusted", "own", "refused")) -> FixObservation | None:
+        """The kept fix nearest to `window_s` before stamp (within half to twice that) among those with one of these
+        verdicts (trusted, own: refused on its own evidence, refused), or None."""
         target, best = stamp - self.params.window_s, None
-        for old, anchor in self._history:
-            if anchors_only and not anchor:
+        for old, verdict in self._history:
+            if verdict not in verdicts:
                 continue
             in_window = stamp - 2.0 * self.params.window_s <= old.stamp <= stamp - 0.5 * self.params.window_s
             if in_window and (best is None or abs(old.stamp - target) < abs(best.stamp - target)):
@@ -222,8 +241,8 @@ class ConsistencyMonitor(Monitor):
         else:
             gap = obs.stamp - self._last_measured >= self.params.gap_s
         # window test against a trusted fix (for the verdict) and against any fix (for the guard)
-        trusted_ref = None if gap else self._window_reference(obs.stamp, anchors_only=True)
-        any_ref = None if gap else self._window_reference(obs.stamp, anchors_only=False)
+        trusted_ref = None if gap else self._window_reference(obs.stamp, ("trusted", "own"))
+        any_ref = None if gap else self._window_reference(obs.stamp)
         guard_d2 = math.nan if any_ref is None else self._distance(any_ref, obs, ctx)
         # no anchor in the window: the receiver's own track must move with the odometry
         window_d2 = guard_d2 if trusted_ref is None else self._distance(trusted_ref, obs, ctx)
@@ -240,15 +259,30 @@ class ConsistencyMonitor(Monitor):
         # half a window after the gap on: until then a fix is none either way (None), whatever the reference says (carried
         # over the outage, it is as uncertain as the dead reckoning and passes a walk-back's first metres)
         evidence = None if math.isnan(guard_d2) else steady and not ref_d2 > self.guard_gate
-        self._pending = (gap, ref, evidence, weight)
+        self._pending = (gap, ref, evidence, weight, False)
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
         guard_from = obs.stamp if gap else self._guard_start  # None: no guard running
         in_guard = guard_from is not None and (obs.stamp - guard_from < self.params.guard_s or passes < self.params.guard_n)
-        if tests and statistic > self.gate:
+        # after a long refused stretch the host has dead-reckoned as through a blackout: until a fix passes, its track over
+        # the window must also be steady, against a trusted fix there or else any (the window's anchors then are fixes
+        # refused on C/N0 during the fault, which carry it), and the reference within the guard's gate
+        refused_for = 0.0 if gap or self._refused_since is None else obs.stamp - self._refused_since
+        stretch = refused_for >= self.params.refused_s
+        failed, held, track_d2 = bool(tests) and statistic > self.gate, False, math.nan
+        if stretch and not failed:
+            before = self._window_reference(obs.stamp, ("trusted",))
+            track_d2 = guard_d2 if before is None else self._distance(before, obs, ctx)
+            held = not track_d2 <= self.guard_gate or ref_d2 > self.guard_gate
+        self._pending = (*self._pending[:4], failed or (stretch and held))
+        if failed:
             which = "window" if window_d2 == statistic else "reference"
             why = f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}"
+            return Verdict(False, statistic, why, rule=f"consistency.{which}", steady=steady)
+        if self._pending[-1]:
+            which, d2 = ("window", track_d2) if not track_d2 <= self.guard_gate else ("reference", ref_d2)
+            why = f"{which} displacement test {d2:.1f} > gate {self.guard_gate:.1f} after {refused_for:.1f} s refused"
             return Verdict(False, statistic, why, rule=f"consistency.{which}", steady=steady)
         if in_guard:
             why = f"re-acquisition guard ({passes}/{self.params.guard_n} consistent)"
@@ -258,7 +292,7 @@ class ConsistencyMonitor(Monitor):
         return Verdict(True, statistic, "displacement consistent", steady=steady)
 
     def commit(self, obs: FixObservation, verdict: Verdict) -> None:
-        gap, ref, evidence, weight = self._pending
+        gap, ref, evidence, weight, failed = self._pending
         if gap:
             self._guard_start, self._guard_passes = obs.stamp, 0
             self._history.clear()
@@ -268,9 +302,11 @@ class ConsistencyMonitor(Monitor):
             if obs.stamp - self._guard_start >= self.params.guard_s and self._guard_passes >= self.params.guard_n:
                 self._guard_start = None
         self._last_measured = obs.stamp
-        self._history.append((obs, verdict.trusted or verdict.on_its_own))
+        self._history.append((obs, "trusted" if verdict.trusted else "own" if verdict.on_its_own else "refused"))
         while self._history and self._history[0][0].stamp < obs.stamp - 2.0 * self.params.window_s:
             self._history.popleft()
+        # the refused stretch: fixes that failed this monitor's tests, back to back since the first
+        self._refused_since = (obs.stamp if self._refused_since is None else self._refused_since) if failed and not gap else None
         self._ref = ref
         # a fix refused only on its own evidence (a weak satellite: C/N0 says nothing of the position, and this
         # monitor's own tests passed, or the verdict would not be on its own evidence) updates the reference too: without

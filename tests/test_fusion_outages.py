@@ -74,12 +74,6 @@ def test_charles_river_bridge_outage(charles_bridge):
 
 
 @pytest.mark.slow  # the fast suite's canal_multipath and steer_canal_multipath cover the NLOS canyon with the same stack
-@pytest.mark.xfail(
-    strict=True,
-    reason="on the real 2018 ELKO sky (29a613a) a GPS-only receiver's NLOS fixes beside the lock err by up to 14.5 m and the "
-    "ekf's default monitor trusts 19 of those above 10 m (it refused all on the synthetic 2024 almanac): the ekf jumps to "
-    "12.7 m before the outage and is 10.0 m off after it (bound 6.0); the monitor's recall is issue 23/24 follow-up work",
-)
 def test_canal_lock_outage_between_nlos_stretches(canal):
     a, b = outage(canal)
     ekf = worst(canal, "ekf", a, b + 20.0)

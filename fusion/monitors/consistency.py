@@ -93,11 +93,10 @@ class ConsistencyParams(BaseModel):
         gt=0,
         description="after a stretch at least this long in which every fix failed this monitor's tests, a fix also needs "
         "the guard's evidence (steady over the window, the reference within guard_gate_prob) until one passes, s [2, as "
-        "gap_s: the host has dead-reckoned "
-        "as long as through a blackout, the reference has grown as loose, and the receiver that carried the fault may "
-        "be walking back from it: quickstart seed 4 at 1771.9 s, after 20 s of refusals, a fix 25 m off passed the "
-        "window test at 13.5 (walking back 1.5 m/s) and the reference at its along-quay sigma of 11 m, and the ekf went "
-        "5.5 -> 29.9 m off; docs/models.md 'Evidence after a refused stretch']",
+        "gap_s: the host has dead-reckoned as long as through a blackout, the reference has grown as loose, and the "
+        "receiver that carried the fault may be walking back from it: quickstart seed 4 at 1771.9 s, after 20 s of "
+        "refusals, a fix 25 m off passed the window test at 13.5 (walking back 1.5 m/s) and the reference at its "
+        "along-quay sigma of 11 m, and the ekf went 5.5 -> 29.9 m off; docs/models.md 'Evidence after a refused stretch']",
     )
     startup_guard: bool = Field(
         False,
@@ -259,7 +258,6 @@ class ConsistencyMonitor(Monitor):
         # half a window after the gap on: until then a fix is none either way (None), whatever the reference says (carried
         # over the outage, it is as uncertain as the dead reckoning and passes a walk-back's first metres)
         evidence = None if math.isnan(guard_d2) else steady and not ref_d2 > self.guard_gate
-        self._pending = (gap, ref, evidence, weight, False)
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
@@ -270,17 +268,17 @@ class ConsistencyMonitor(Monitor):
         # refused on C/N0 during the fault, which carry it), and the reference within the guard's gate
         refused_for = 0.0 if gap or self._refused_since is None else obs.stamp - self._refused_since
         stretch = refused_for >= self.params.refused_s
-        failed, held, track_d2 = bool(tests) and statistic > self.gate, False, math.nan
+        failed, track_d2 = bool(tests) and statistic > self.gate, math.nan
         if stretch and not failed:
             before = self._window_reference(obs.stamp, ("trusted",))
             track_d2 = guard_d2 if before is None else self._distance(before, obs, ctx)
-            held = not track_d2 <= self.guard_gate or ref_d2 > self.guard_gate
-        self._pending = (*self._pending[:4], failed or (stretch and held))
+        held = stretch and not failed and (not track_d2 <= self.guard_gate or ref_d2 > self.guard_gate)
+        self._pending = (gap, ref, evidence, weight, failed or held)
         if failed:
             which = "window" if window_d2 == statistic else "reference"
             why = f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}"
             return Verdict(False, statistic, why, rule=f"consistency.{which}", steady=steady)
-        if self._pending[-1]:
+        if held:
             which, d2 = ("window", track_d2) if not track_d2 <= self.guard_gate else ("reference", ref_d2)
             why = f"{which} displacement test {d2:.1f} > gate {self.guard_gate:.1f} after {refused_for:.1f} s refused"
             return Verdict(False, statistic, why, rule=f"consistency.{which}", steady=steady)

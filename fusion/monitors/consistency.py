@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from typing import NamedTuple
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -138,6 +139,16 @@ class ConsistencyParams(BaseModel):
     )
 
 
+class _Pending(NamedTuple):
+    """What check decided about a fix, for commit to apply once the host's verdict on it is known."""
+
+    gap: bool  # the fix ends a stretch without measured fixes (the guard starts)
+    ref: tuple | None  # the reference carried to this fix
+    evidence: bool | None  # the guard's evidence (None: no window test yet)
+    weight: float  # the fix's share of an independent one, for the reference update
+    failed: bool  # failed this monitor's tests (or, after a refused stretch, the guard's evidence): the stretch goes on
+
+
 class ConsistencyMonitor(Monitor):
     """GPS-vs-odometry displacement tests plus the re-acquisition guard; statistic is the larger distance."""
 
@@ -157,7 +168,7 @@ class ConsistencyMonitor(Monitor):
         self._guard_start: float | None = None
         self._guard_passes = 0
         self._refused_since: float | None = None  # first fix of the current stretch that failed this monitor's tests
-        self._pending: tuple[bool, tuple | None, bool | None, float, bool] = (False, None, None, 1.0, False)
+        self._pending = _Pending(False, None, None, 1.0, False)
 
     def _moved(self, t_a: float, t_b: float, ctx: FixContext, since: float | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """Antenna displacement from t_a to t_b in the world by the odometry, and its 2x2 covariance; `since` (default t_a):
@@ -234,6 +245,10 @@ class ConsistencyMonitor(Monitor):
                 best = old
         return best
 
+    def _agrees(self, window_d2: float, ref_d2: float) -> bool:
+        """The guard's test: the window distance within its gate (NaN fails) and the reference's too (NaN: none, passes)."""
+        return window_d2 <= self.guard_gate and not ref_d2 > self.guard_gate
+
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
         if self._last_measured is None:  # start-up: guarded when the host holds a position of its own (a given pose)
             gap = self.params.startup_guard or ctx.own_start
@@ -257,7 +272,7 @@ class ConsistencyMonitor(Monitor):
         # the guard's evidence is the receiver's own track over a window (a walk-back moves it against the odometry), from
         # half a window after the gap on: until then a fix is none either way (None), whatever the reference says (carried
         # over the outage, it is as uncertain as the dead reckoning and passes a walk-back's first metres)
-        evidence = None if math.isnan(guard_d2) else steady and not ref_d2 > self.guard_gate
+        evidence = None if math.isnan(guard_d2) else self._agrees(guard_d2, ref_d2)
         tests = [d for d in (window_d2, ref_d2) if not math.isnan(d)]
         statistic = max(tests) if tests else math.nan
         passes = 0 if gap else self._guard_passes
@@ -272,8 +287,8 @@ class ConsistencyMonitor(Monitor):
         if stretch and not failed:
             before = self._window_reference(obs.stamp, ("trusted",))
             track_d2 = guard_d2 if before is None else self._distance(before, obs, ctx)
-        held = stretch and not failed and (not track_d2 <= self.guard_gate or ref_d2 > self.guard_gate)
-        self._pending = (gap, ref, evidence, weight, failed or held)
+        held = stretch and not failed and not self._agrees(track_d2, ref_d2)
+        self._pending = _Pending(gap, ref, evidence, weight, failed or held)
         if failed:
             which = "window" if window_d2 == statistic else "reference"
             why = f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}"

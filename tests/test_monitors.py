@@ -193,16 +193,26 @@ def _feed(
     velocity: np.ndarray | None = None,
     until: float = 39.0,
     velocity_cov: np.ndarray | None = None,
+    correlation_s: float = 30.0,
+    sigma: float = 0.5,
 ) -> list:
     """Fixes at 5 Hz on the true track plus error_of(t) metres east; suspect_of(t) fixes are refused on their own
     evidence first (as a C/N0 monitor would); every fix goes through check and commit; velocity: the host filter's (None:
-    a host without one), velocity_cov its covariance. Returns (t, verdict) pairs."""
+    a host without one), velocity_cov its covariance; correlation_s: the receiver's error time constant the host gives;
+    sigma: each fix's per-axis sigma. Returns (t, verdict) pairs."""
     ctx = FixContext(
-        predicted=None, yaw=0.0, yaw_var=1e-6, lever=np.zeros(2), odometry=track, correlation_s=30.0, velocity=velocity, velocity_cov=velocity_cov
+        predicted=None,
+        yaw=0.0,
+        yaw_var=1e-6,
+        lever=np.zeros(2),
+        odometry=track,
+        correlation_s=correlation_s,
+        velocity=velocity,
+        velocity_cov=velocity_cov,
     )
     out = []
     for t in np.arange(0.0, until, 0.2):
-        obs = _obs(float(t), [2.0 * t + error_of(t), 0.0], sigma=0.5)
+        obs = _obs(float(t), [2.0 * t + error_of(t), 0.0], sigma=sigma)
         verdict = mon.check(obs, ctx)
         if suspect_of(t) and verdict.trusted:
             verdict = fusion.Verdict(False, verdict.statistic, "suspect", on_its_own=True, steady=verdict.steady)
@@ -257,6 +267,26 @@ def test_a_walk_back_after_a_long_refused_stretch_meets_the_tighter_gate():
     verdicts = _feed(monitors.create("consistency"), track, ramp, **doubted)
     assert not any(v.trusted for t, v in verdicts if ramp(t) > 6.0)
     assert all(v.trusted for t, v in verdicts if t >= 63.0)
+
+
+def test_the_pf_gives_its_monitor_the_receivers_error_correlation_not_its_likelihoods():
+    """The demo, seed 4, pf with combined_cn0 at 1774.9 s: the pf weighs fixes as independent Student-t draws and handed
+    that (gps_correlation_s 0) to its monitor, whose window test then took two fixes 2 s apart as independent: its gate
+    3.9 times wider than the ekf's, it passed the receiver's walk-back of 1.6 m/s 27.7 m off, and the pf followed it
+    (APE p95 31.96 m). The correlation is the receiver's, so both filters give the monitor the same; the pf's likelihood
+    keeps its independent draws unless bias_state."""
+    pf, ekf = fusion.create("pf"), fusion.create("ekf")
+    assert pf.params.gps_correlation_s == ekf.params.gps_correlation_s > 0.0
+    assert not pf.params.bias_state
+    # the receiver's error there: a reflected ramp to 45 m, its plateau, a walk-back at 1.6 m/s, then back in 5 s
+    walk_back = lambda t: float(np.interp(t, [10.0, 14.0, 20.0, 36.0, 41.0], [0.0, 45.0, 45.0, 19.4, 0.0]))
+    host = {"velocity": np.array([2.0, 0.0]), "velocity_cov": np.diag([0.45**2, 0.1**2]), "until": 55.0}
+    hdop_1 = {"sigma": 3.0 / math.sqrt(2.0), **host}  # uere 3 m at HDOP 1, as both filters weigh a fix
+    independent = _feed(monitors.create("consistency"), _along_a_wall(until=56.0), walk_back, correlation_s=0.0, **hdop_1)
+    assert any(v.trusted for t, v in independent if 20.0 < t < 36.0)
+    receivers = _feed(monitors.create("consistency"), _along_a_wall(until=56.0), walk_back, correlation_s=pf.params.gps_correlation_s, **hdop_1)
+    assert not any(v.trusted for t, v in receivers if walk_back(t) > 5.0)
+    assert all(v.trusted for t, v in receivers if t >= 45.0)
 
 
 def test_a_constant_velocity_run_along_an_unobserved_direction_is_trusted():

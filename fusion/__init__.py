@@ -51,11 +51,12 @@ def params_model(name: str) -> type[BaseEstimatorParams]:
     return _ESTIMATORS[name][1] if name in _ESTIMATORS else _plugin(name).Params
 
 
-def create(name: str, **params) -> Estimator:
-    """A fresh estimator by name; unknown names, parameters and monitors raise ValueError naming them."""
+def create(name: str, *, templates: monitors.Cn0Templates | None = None, **params) -> Estimator:
+    """A fresh estimator by name; unknown names, parameters and monitors raise ValueError naming them. `templates`: the
+    receiver's C/N0 templates its monitor shares with the other estimators' (monitors.create)."""
     cls = _ESTIMATORS[name][0] if name in _ESTIMATORS else _plugin(name)
     p = validate_params(params_model(name), params, f"estimator '{name}'")
-    monitor = monitors.create(p.monitor, **p.monitor_params)
+    monitor = monitors.create(p.monitor, templates=templates, **p.monitor_params)
     return cls(p, monitor)
 
 

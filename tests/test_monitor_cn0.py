@@ -607,3 +607,24 @@ def test_quantiles_by_group_sort_within_groups_as_lexsort_does(values, groups, q
     qs = np.array([q, 0.9])
     # the same numbers; of a tie between -0.0 and 0.0 np.quantile's partition may pick either zero, as sorting may
     assert np.array_equal(_sorted_quantiles(np.sort(v), qs), np.quantile(v, qs))
+
+
+def test_monitors_sharing_a_receivers_templates_judge_as_their_own_and_learn_each_fix_once():
+    """The run's estimators judge one receiver's fixes, so their cn0 monitors share its template (fusion.monitors.create's
+    templates): each fix is learned once, when the first of them judges the next one, and every verdict is the one a
+    monitor learning alone gives, also for a combined monitor and with a share of NLOS reports in the learning."""
+    templates = monitors.Cn0Templates()
+    shared = [monitors.create("combined_cn0", templates=templates), monitors.create("cn0", templates=templates)]
+    alone = [monitors.create("combined_cn0"), monitors.create("cn0")]
+    assert shared[0].members[1].learned is shared[1].learned is templates.get(shared[1].params)
+    assert monitors.create("cn0", templates=templates, gate_sigma=3.0).learned is not shared[1].learned  # other parameters
+    learned, learn = shared[1].learned, shared[1].learned.learn
+    calls = []
+    shared[1].learned.learn = lambda obs: (calls.append(obs.stamp), learn(obs))[1]  # type: ignore[method-assign]
+    epochs = clean_epochs(np.random.default_rng(3), 300, nlos_share=0.15)
+    for t, el, snr in epochs:
+        fix = make_fix(t, el, snr)
+        assert [feed(m, fix) for m in shared] == [feed(m, fix) for m in alone]
+    assert calls == [t for t, _, _ in epochs[:-1]]  # each fix once; the last is learned when the next one is judged
+    assert shared[1].template(30.0) == alone[1].template(30.0) and shared[1].offsets() == alone[1].offsets()
+    assert calls[-1] == epochs[-1][0] and learned.template(30.0) == alone[1].template(30.0)  # asked, it learns the last

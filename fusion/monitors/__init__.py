@@ -8,7 +8,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from fusion.monitors.base import FixContext, Monitor
-from fusion.monitors.cn0 import Cn0Monitor, Cn0Params
+from fusion.monitors.cn0 import Cn0Monitor, Cn0Params, Cn0Templates
 from fusion.monitors.combined import CombinedCn0Params, CombinedMonitor, CombinedParams, CombinedShadowParams
 from fusion.monitors.consistency import ConsistencyMonitor, ConsistencyParams
 from fusion.monitors.hdop import HdopMonitor, HdopParams
@@ -69,12 +69,16 @@ def validated(name: str, params: dict) -> BaseModel:
     return p
 
 
-def create(name: str, **params) -> Monitor:
-    """A fresh monitor by name; unknown names and parameters raise ValueError naming them."""
+def create(name: str, *, templates: Cn0Templates | None = None, **params) -> Monitor:
+    """A fresh monitor by name; unknown names and parameters raise ValueError naming them. `templates`: the C/N0
+    templates learned from the receiver whose fixes it judges, shared with the other monitors judging them (None: a
+    cn0 monitor learns its own; the verdicts are the same, the learning is done once per fix when shared)."""
     cls = _MONITORS[name][0] if name in _MONITORS else _plugin(name)
     p = validated(name, params)
     if isinstance(p, CombinedParams) and cls is CombinedMonitor:
-        return CombinedMonitor(p, [create(m, **p.member_params.get(m, {})) for m in p.members])
+        return CombinedMonitor(p, [create(m, templates=templates, **p.member_params.get(m, {})) for m in p.members])
+    if isinstance(p, Cn0Params) and cls is Cn0Monitor:
+        return Cn0Monitor(p, templates.get(p) if templates is not None else None)
     return cls(p)
 
 
@@ -85,4 +89,4 @@ def _plugin(name: str) -> type[Any]:
     return plugins.load(name, GROUP, "monitor", methods=("check", "commit", "reset", "note_outage"))
 
 
-__all__ = ["GROUP", "FixContext", "Monitor", "available", "create", "params_model", "validate_params", "validated"]
+__all__ = ["GROUP", "Cn0Templates", "FixContext", "Monitor", "available", "create", "params_model", "validate_params", "validated"]

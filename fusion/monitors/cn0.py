@@ -279,14 +279,15 @@ def _valid(el_deg: np.ndarray, snr: np.ndarray) -> np.ndarray:
     return np.isfinite(el_deg) & np.isfinite(snr) & (el_deg > 0) & (el_deg <= 90) & (snr > 0)
 
 
-class Cn0Monitor(Monitor):
-    """Distrusts a fix that uses a satellite whose C/N0 falls gate_sigma below the learned template; statistic is the largest normalised deficit."""
-
-    name = "cn0"
+class Cn0Template:
+    """The direct-signal template learned from one receiver's reports (module docstring): ring buffers per sin(elevation)
+    bin, the template line and sigma, each signal's offset and the spread between satellites. It is the receiver's and
+    antenna's, not a filter's, so every cn0 monitor judging one receiver's fixes with the same parameters can share one
+    (Cn0Templates): it learns each fix once. A monitor learns a fix when it judges the next one, so every sharing monitor
+    judges a fix against the template of the fixes before it, as a monitor of its own would."""
 
     def __init__(self, params: Cn0Params) -> None:
         self.params = params
-        self.gate = params.gate_sigma
         p = params
         self._sin = np.full((p.bins, p.samples_per_bin), np.nan)  # ring buffers per sin(el) bin
         self._cn0 = np.full((p.bins, p.samples_per_bin), np.nan)
@@ -301,8 +302,7 @@ class Cn0Monitor(Monitor):
         self._line: tuple[float, float] | None = None  # template intercept and slope over sin(el), dB-Hz
         self._sigma = math.nan
         self._z_mid, self._z_high = norm.ppf(p.mid_q), norm.ppf(p.high_q)
-        self._recent: deque[tuple[float, float, float]] = deque()  # (stamp, deficit, suspects' shift) of committed fixes within hold_s
-        self._judged: tuple[FixObservation, tuple[float, float | None, str, str, float]] | None = None  # check's, for commit
+        self._learned: tuple[float, tuple] | None = None  # (stamp, reports) of the fix learned last through learn_once
 
     def template(self, el_deg: float | np.ndarray) -> tuple[np.ndarray, float] | None:
         """Direct GPS L1 C/A C/N0 (dB-Hz) at these elevations and its jitter sigma (dB): learned, else the receiver profile's,
@@ -325,7 +325,7 @@ class Cn0Monitor(Monitor):
         """Each signal's current offset from the template (dB), learned or prior."""
         return {name: float(self._offset[k]) for name, k in self._signals.items()}
 
-    def _signal(self, sat) -> int:
+    def signal(self, sat) -> int:
         """The index of a satellite's signal (registered on first sight with its prior offset); 0 without per_signal."""
         if not self.params.per_signal:
             return 0
@@ -341,114 +341,15 @@ class Cn0Monitor(Monitor):
         key = (str(getattr(sat, "system", "GPS")), str(getattr(sat, "signal", "L1 C/A")), int(sat.prn))
         return self._satellites.setdefault(key, len(self._satellites))
 
-    def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
-        self._judged = (obs, self._deficit(obs))
-        deficit, sigma, named, note, _ = self._judged[1]
-        if sigma is None:
-            return Verdict(True, math.nan, note)
-        recent = [(d, shift, obs.stamp - t) for t, d, shift in self._recent if obs.stamp - self.params.hold_s <= t < obs.stamp]
-        held = [(d, shift, age) for d, shift, age in recent if self._still_carried(shift, age)]
-        statistic = max([deficit, *(d for d, _, _ in held)])
-        if deficit > self.gate:
-            return Verdict(
-                False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note, on_its_own=True, rule="cn0.deficit"
-            )
-        if statistic > self.gate:
-            allowance = max(self._carried(shift, age) for d, shift, age in held if d > self.gate)
-            if self.params.hold_allowance and math.isfinite(allowance):
-                why = f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s: trusted, allowing {allowance:.1f} m"
-                return Verdict(True, statistic, why + note, rule="cn0.hold", allowance_m=allowance)
-            return Verdict(
-                False,
-                statistic,
-                f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s "
-                "(the receiver's filter still carries it)" + note,
-                on_its_own=True,
-                rule="cn0.hold",
-            )
-        return Verdict(True, statistic, "C/N0 consistent with a direct signal" + note)
+    def counting_bins(self) -> int:
+        """How many bins hold min_samples_per_bin samples (the template needs min_bins)."""
+        return int((self._count >= self.params.min_samples_per_bin).sum())
 
-    def _carried(self, shift: float, age_s: float) -> float:
-        """How far a held fault (its suspects could move the fix `shift` m) may still move the receiver's output `age_s`
-        later, m: halved every hold_half_life_s (RECEIVER_HALF_LIFE_S when unset)."""
-        return shift * 0.5 ** (age_s / (self.params.hold_half_life_s or RECEIVER_HALF_LIFE_S))
+    def signal_scales(self, signals: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Each signal's offset from the template (dB) and its learned jitter sigma (dB, NaN until learned)."""
+        return self._offset[signals], self._spread[signals]
 
-    def _still_carried(self, shift: float, age_s: float) -> bool:
-        """Whether a held fault (its suspects could move the fix `shift` m) may still move the receiver's output by more
-        than fault_m `age_s` later: its effect halves every hold_half_life_s (always, without a half-life)."""
-        return self.params.hold_half_life_s is None or self._carried(shift, age_s) > self.params.fault_m
-
-    def _deficit(self, obs: FixObservation) -> tuple[float, float | None, str, str, float]:
-        """(largest normalised deficit of the used satellites that count, template sigma or None when it cannot judge,
-        the satellites over the gate, a note on skipped reports, suspects weighed and found harmless, or why it cannot
-        judge, how far the suspects could move the fix (inf when not weighed)). The suspects (deficit over the gate)
-        count only when they could together move the fix by more than fault_m (see nlos_bias_m); otherwise the deficit
-        is the largest of the others'."""
-        judged = self.satellite_deficits(obs)
-        if isinstance(judged, str):
-            return math.nan, None, "", judged, math.inf
-        deficit, used, sigma, skipped = judged
-        names = [_label(s) for s in used]
-        suspect = deficit > self.gate
-        named = ", ".join(f"{name} {d:.1f}" for d, name in sorted(zip(deficit.tolist(), names), reverse=True) if d > self.gate)
-        shift = self._suspects_shift(obs, [s for s, k in zip(used, suspect) if k])
-        if shift is None:
-            return float(deficit.max()), sigma, named, skipped, math.inf
-        if shift > self.params.fault_m:
-            return float(deficit.max()), sigma, f"{named} (together they can move the fix {shift:.1f} m)", skipped, shift
-        harmless = f"; {named} below the template, but together they move the fix at most {shift:.1f} m (<= fault_m {self.params.fault_m:g})"
-        return float(deficit[~suspect].max()) if (~suspect).any() else 0.0, sigma, "", skipped + harmless, shift
-
-    def _suspects_shift(self, obs: FixObservation, suspects: list) -> float | None:
-        """How far the suspect satellites could move the fix together (nlos_bias_m times the sum of their slopes), m, or
-        None when they are not weighed (none, or nlos_bias_m 0)."""
-        if not suspects or self.params.nlos_bias_m <= 0:
-            return None
-        used = [s for s in obs.sats if getattr(s, "used", False)]
-        slopes = horizontal_slopes(
-            np.array([_float(s.el_deg) for s in used]), np.array([_float(s.az_deg) for s in used]), [str(getattr(s, "system", "GPS")) for s in used]
-        )
-        picked = [k for k, s in enumerate(used) if any(s is t for t in suspects)]
-        return float(self.params.nlos_bias_m * slopes[picked].sum())
-
-    def satellite_deficits(self, obs: FixObservation) -> tuple[np.ndarray, list, float, str] | str:
-        """Each used satellite's normalised C/N0 deficit below what a direct signal gives (the verdict's evidence, per
-        satellite): (deficits, the used satellites' reports they belong to, the template's sigma in dB, a note on
-        skipped reports), or why the fix cannot be judged."""
-        used = [s for s in obs.sats if getattr(s, "used", False)]
-        if not used:
-            return "unchecked: no used satellite reported"
-        el = np.array([_float(s.el_deg) for s in used])
-        snr = np.array([_float(s.snr) for s in used])
-        ok = _valid(el, snr)
-        skipped = "" if ok.all() else f"; skipped PRN {', '.join(str(s.prn) for s, k in zip(used, ok) if not k)} (bad C/N0 or elevation)"
-        if not ok.any():
-            return "unchecked: no used satellite with a valid C/N0 and elevation" + skipped
-        learned = self.template(el[ok])
-        if learned is None:
-            full = int((self._count >= self.params.min_samples_per_bin).sum())
-            return f"learning the C/N0 template ({full}/{self.params.min_bins} bins)" + skipped
-        expected, sigma = learned
-        judged = [s for s, k in zip(used, ok) if k]
-        signals = [self._signal(s) for s in judged]
-        scale: float | np.ndarray = sigma
-        if any(signals):
-            expected = expected + self._offset[signals]
-            own = self._spread[signals]
-            scale = np.where(np.isfinite(own), np.maximum(own, sigma), sigma)
-        return (expected - snr[ok]) / scale, judged, sigma, skipped
-
-    def commit(self, obs: FixObservation, verdict: Verdict) -> None:
-        """Remember the fix's deficit for the hold; learn from every tracked satellite (used or not) and refit the template."""
-        deficit, _, _, _, shift = self._judged[1] if self._judged is not None and self._judged[0] is obs else self._deficit(obs)
-        self._judged = None
-        while self._recent and self._recent[0][0] < obs.stamp - self.params.hold_s:
-            self._recent.popleft()
-        if math.isfinite(deficit) and self.params.hold_s > 0:
-            self._recent.append((obs.stamp, deficit, shift))
-        self.calibrate(obs)
-
-    def calibrate(self, obs: FixObservation) -> None:
+    def learn(self, obs: FixObservation) -> None:
         """Learn from every tracked satellite of a fix (used or not) and refit the template, without judging it."""
         if not obs.sats:
             return
@@ -459,7 +360,7 @@ class Cn0Monitor(Monitor):
             return
         s = np.sin(np.deg2rad(el[ok]))
         b = np.minimum((s * self.params.bins).astype(int), self.params.bins - 1)
-        signals = [self._signal(sat) for sat, k in zip(obs.sats, ok) if k]
+        signals = [self.signal(sat) for sat, k in zip(obs.sats, ok) if k]
         satellites = [self._satellite(sat) for sat, k in zip(obs.sats, ok) if k]
         for k, (sk, ck) in enumerate(zip(s, snr[ok])):
             slot = self._count[b[k]] % self.params.samples_per_bin
@@ -467,6 +368,15 @@ class Cn0Monitor(Monitor):
             self._sat[b[k], slot] = satellites[k]
             self._count[b[k]] += 1
         self._fit()
+
+    def learn_once(self, obs: FixObservation) -> None:
+        """learn(obs) unless this fix (its stamp and reports) was the last one learned: another monitor sharing the
+        template learned it."""
+        key = (obs.stamp, obs.sats)
+        if self._learned is not None and self._learned == key:
+            return
+        self._learned = key
+        self.learn(obs)
 
     def _fit(self) -> None:
         """Refit the template line and sigma from the buffers (see the module docstring)."""
@@ -541,6 +451,169 @@ class Cn0Monitor(Monitor):
                 self._spread[k] = max(float(q_high - q_mid) / (self._z_high - self._z_mid), self._sigma)
         anchor = 0 if ready[0] else int(np.argmax(counts))
         self._offset[ready] = self._offset[anchor] + level[ready] - level[anchor]
+
+
+class Cn0Monitor(Monitor):
+    """Distrusts a fix that uses a satellite whose C/N0 falls gate_sigma below the learned template; statistic is the largest normalised deficit."""
+
+    name = "cn0"
+
+    def __init__(self, params: Cn0Params, learned: Cn0Template | None = None) -> None:
+        self.params = params
+        self.gate = params.gate_sigma
+        self.learned = learned if learned is not None else Cn0Template(params)
+        """The template it judges against (its own, or one shared with the monitors judging the same receiver)."""
+        self._pending: FixObservation | None = None  # the fix committed last, learned before the next is judged
+        self._recent: deque[tuple[float, float, float]] = deque()  # (stamp, deficit, suspects' shift) of committed fixes within hold_s
+        self._judged: tuple[FixObservation, tuple[float, float | None, str, str, float]] | None = None  # check's, for commit
+
+    def _catch_up(self) -> None:
+        """Learn the fix committed last (once per sharing template), so that the template holds every fix before this one."""
+        if self._pending is not None:
+            self.learned.learn_once(self._pending)
+            self._pending = None
+
+    def template(self, el_deg: float | np.ndarray) -> tuple[np.ndarray, float] | None:
+        """The learned template's (Cn0Template.template), with every committed fix learned."""
+        self._catch_up()
+        return self.learned.template(el_deg)
+
+    @property
+    def between_satellites(self) -> tuple[float, float] | None:
+        """The learned template's (Cn0Template.between_satellites), with every committed fix learned."""
+        self._catch_up()
+        return self.learned.between_satellites
+
+    def offsets(self) -> dict[str, float]:
+        """The learned template's (Cn0Template.offsets), with every committed fix learned."""
+        self._catch_up()
+        return self.learned.offsets()
+
+    def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
+        self._catch_up()
+        self._judged = (obs, self._deficit(obs))
+        deficit, sigma, named, note, _ = self._judged[1]
+        if sigma is None:
+            return Verdict(True, math.nan, note)
+        recent = [(d, shift, obs.stamp - t) for t, d, shift in self._recent if obs.stamp - self.params.hold_s <= t < obs.stamp]
+        held = [(d, shift, age) for d, shift, age in recent if self._still_carried(shift, age)]
+        statistic = max([deficit, *(d for d, _, _ in held)])
+        if deficit > self.gate:
+            return Verdict(
+                False, statistic, f"C/N0 deficit > {self.gate:g} sigma ({sigma:.1f} dB): {named}" + note, on_its_own=True, rule="cn0.deficit"
+            )
+        if statistic > self.gate:
+            allowance = max(self._carried(shift, age) for d, shift, age in held if d > self.gate)
+            if self.params.hold_allowance and math.isfinite(allowance):
+                why = f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s: trusted, allowing {allowance:.1f} m"
+                return Verdict(True, statistic, why + note, rule="cn0.hold", allowance_m=allowance)
+            return Verdict(
+                False,
+                statistic,
+                f"a used satellite's C/N0 was {statistic:.1f} sigma low within {self.params.hold_s:g} s "
+                "(the receiver's filter still carries it)" + note,
+                on_its_own=True,
+                rule="cn0.hold",
+            )
+        return Verdict(True, statistic, "C/N0 consistent with a direct signal" + note)
+
+    def _carried(self, shift: float, age_s: float) -> float:
+        """How far a held fault (its suspects could move the fix `shift` m) may still move the receiver's output `age_s`
+        later, m: halved every hold_half_life_s (RECEIVER_HALF_LIFE_S when unset)."""
+        return shift * 0.5 ** (age_s / (self.params.hold_half_life_s or RECEIVER_HALF_LIFE_S))
+
+    def _still_carried(self, shift: float, age_s: float) -> bool:
+        """Whether a held fault (its suspects could move the fix `shift` m) may still move the receiver's output by more
+        than fault_m `age_s` later: its effect halves every hold_half_life_s (always, without a half-life)."""
+        return self.params.hold_half_life_s is None or self._carried(shift, age_s) > self.params.fault_m
+
+    def _deficit(self, obs: FixObservation) -> tuple[float, float | None, str, str, float]:
+        """(largest normalised deficit of the used satellites that count, template sigma or None when it cannot judge,
+        the satellites over the gate, a note on skipped reports, suspects weighed and found harmless, or why it cannot
+        judge, how far the suspects could move the fix (inf when not weighed)). The suspects (deficit over the gate)
+        count only when they could together move the fix by more than fault_m (see nlos_bias_m); otherwise the deficit
+        is the largest of the others'."""
+        judged = self.satellite_deficits(obs)
+        if isinstance(judged, str):
+            return math.nan, None, "", judged, math.inf
+        deficit, used, sigma, skipped = judged
+        names = [_label(s) for s in used]
+        suspect = deficit > self.gate
+        named = ", ".join(f"{name} {d:.1f}" for d, name in sorted(zip(deficit.tolist(), names), reverse=True) if d > self.gate)
+        shift = self._suspects_shift(obs, [s for s, k in zip(used, suspect) if k])
+        if shift is None:
+            return float(deficit.max()), sigma, named, skipped, math.inf
+        if shift > self.params.fault_m:
+            return float(deficit.max()), sigma, f"{named} (together they can move the fix {shift:.1f} m)", skipped, shift
+        harmless = f"; {named} below the template, but together they move the fix at most {shift:.1f} m (<= fault_m {self.params.fault_m:g})"
+        return float(deficit[~suspect].max()) if (~suspect).any() else 0.0, sigma, "", skipped + harmless, shift
+
+    def _suspects_shift(self, obs: FixObservation, suspects: list) -> float | None:
+        """How far the suspect satellites could move the fix together (nlos_bias_m times the sum of their slopes), m, or
+        None when they are not weighed (none, or nlos_bias_m 0)."""
+        if not suspects or self.params.nlos_bias_m <= 0:
+            return None
+        used = [s for s in obs.sats if getattr(s, "used", False)]
+        slopes = horizontal_slopes(
+            np.array([_float(s.el_deg) for s in used]), np.array([_float(s.az_deg) for s in used]), [str(getattr(s, "system", "GPS")) for s in used]
+        )
+        picked = [k for k, s in enumerate(used) if any(s is t for t in suspects)]
+        return float(self.params.nlos_bias_m * slopes[picked].sum())
+
+    def satellite_deficits(self, obs: FixObservation) -> tuple[np.ndarray, list, float, str] | str:
+        """Each used satellite's normalised C/N0 deficit below what a direct signal gives (the verdict's evidence, per
+        satellite): (deficits, the used satellites' reports they belong to, the template's sigma in dB, a note on
+        skipped reports), or why the fix cannot be judged."""
+        self._catch_up()
+        t = self.learned
+        used = [s for s in obs.sats if getattr(s, "used", False)]
+        if not used:
+            return "unchecked: no used satellite reported"
+        el = np.array([_float(s.el_deg) for s in used])
+        snr = np.array([_float(s.snr) for s in used])
+        ok = _valid(el, snr)
+        skipped = "" if ok.all() else f"; skipped PRN {', '.join(str(s.prn) for s, k in zip(used, ok) if not k)} (bad C/N0 or elevation)"
+        if not ok.any():
+            return "unchecked: no used satellite with a valid C/N0 and elevation" + skipped
+        learned = t.template(el[ok])
+        if learned is None:
+            return f"learning the C/N0 template ({t.counting_bins()}/{self.params.min_bins} bins)" + skipped
+        expected, sigma = learned
+        judged = [s for s, k in zip(used, ok) if k]
+        signals = [t.signal(s) for s in judged]
+        scale: float | np.ndarray = sigma
+        if any(signals):
+            offset, own = t.signal_scales(signals)
+            expected = expected + offset
+            scale = np.where(np.isfinite(own), np.maximum(own, sigma), sigma)
+        return (expected - snr[ok]) / scale, judged, sigma, skipped
+
+    def commit(self, obs: FixObservation, verdict: Verdict) -> None:
+        """Remember the fix's deficit for the hold; its tracked satellites (used or not) are learned before the next fix is judged."""
+        deficit, _, _, _, shift = self._judged[1] if self._judged is not None and self._judged[0] is obs else self._deficit(obs)
+        self._judged = None
+        while self._recent and self._recent[0][0] < obs.stamp - self.params.hold_s:
+            self._recent.popleft()
+        if math.isfinite(deficit) and self.params.hold_s > 0:
+            self._recent.append((obs.stamp, deficit, shift))
+        self._pending = obs
+
+    def calibrate(self, obs: FixObservation) -> None:
+        """Learn from every tracked satellite of a fix (used or not) and refit the template, without judging it."""
+        self._catch_up()
+        self.learned.learn(obs)
+
+
+class Cn0Templates:
+    """The templates learned from one receiver's fixes, one per set of cn0 parameters: every cn0 monitor built with the
+    same registry and parameters (a run's estimators judging one receiver) shares one, learning each fix once."""
+
+    def __init__(self) -> None:
+        self._by_params: dict[str, Cn0Template] = {}
+
+    def get(self, params: Cn0Params) -> Cn0Template:
+        """The template these parameters learn, made on first use."""
+        return self._by_params.setdefault(params.model_dump_json(), Cn0Template(params))
 
 
 def _quantile_by_group(values: np.ndarray, group: np.ndarray, counts: np.ndarray, q: float) -> np.ndarray:

@@ -20,6 +20,7 @@ from typing import TextIO
 
 import numpy as np
 
+from fusion.monitors import Cn0Templates
 from fusion.verdict import Verdict
 from scenarios.pipeline.inertial import HeadingEvent, ImuEvent
 from scenarios.pipeline.matcher_pool import MatcherPool
@@ -227,11 +228,13 @@ class Feed:
 
 
 def build_estimators(scenario: Scenario, recorder: Recorder, t_start: float) -> tuple[dict, set[str]]:
-    """Every estimator by id, and the ids of those whose constructor raised (recorded as failed from the start)."""
+    """Every estimator by id, and the ids of those whose constructor raised (recorded as failed from the start). Their
+    cn0 monitors share the receiver's C/N0 templates, learning each fix once."""
     estimators, dead = {}, set()
+    templates = Cn0Templates()
     for spec in scenario.estimators:
         try:
-            estimators[spec.id] = spec.build(scenario.seed)
+            estimators[spec.id] = spec.build(scenario.seed, templates)
         except Exception as exc:  # a plugin's constructor may raise anything: that estimator fails, the run goes on
             estimators[spec.id] = None
             dead.add(spec.id)

@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 import fusion
 import matcher
 import worlds
+from fusion.monitors import Cn0Templates
 from fusion.params import DEFAULT_SENSORS
 from riverbench.errors import validation_message
 from riverbench.plugins import is_path as is_plugin_path
@@ -171,12 +172,20 @@ class EstimatorSpec(BaseModel):
         self.params = {k: v for k, v in full.items() if k not in ("matcher", "monitor", "monitor_params", "seed", "sensors")}
         return self
 
-    def build(self, seed: int):
-        """A fresh fusion Estimator with these settings; a random one (pf) draws from the scenario's seed."""
+    def build(self, seed: int, templates: Cn0Templates | None = None):
+        """A fresh fusion Estimator with these settings; a random one (pf) draws from the scenario's seed. `templates`:
+        the receiver's C/N0 templates, shared by the run's estimators (fusion.monitors.create)."""
         seeded = {"seed": seed} if "seed" in fusion.params_model(self.ref).model_fields else {}
         sensors = {"sensors": tuple(self.sensors)} if self.sensors is not None else {}
         return fusion.create(
-            self.ref, matcher=self.matcher or "none", monitor=self.monitor, monitor_params=self.monitor_params, **self.params, **seeded, **sensors
+            self.ref,
+            matcher=self.matcher or "none",
+            monitor=self.monitor,
+            monitor_params=self.monitor_params,
+            **self.params,
+            **seeded,
+            **sensors,
+            templates=templates,
         )
 
 

@@ -21,7 +21,7 @@ from fusion.estimator import Estimator
 from fusion.gps_only import GpsOnly, GpsOnlyParams
 from fusion.hdop_switch import HdopSwitch, HdopSwitchParams
 from fusion.monitors import validate_params
-from fusion.params import BaseEstimatorParams
+from fusion.params import BaseEstimatorParams, EstimatorParams
 from fusion.pf import Pf, PfParams
 from fusion.verdict import Event, Verdict
 from riverbench import plugins
@@ -53,10 +53,14 @@ def params_model(name: str) -> type[BaseEstimatorParams]:
 
 def create(name: str, *, templates: monitors.Cn0Templates | None = None, **params) -> Estimator:
     """A fresh estimator by name; unknown names, parameters and monitors raise ValueError naming them. `templates`: the
-    receiver's C/N0 templates its monitor shares with the other estimators' (monitors.create)."""
+    receiver's C/N0 templates its monitor shares with the other built-in estimators' that screen its fixes alike
+    (monitors.create; a plugin, which may judge fixes its own way, learns its own)."""
     cls = _ESTIMATORS[name][0] if name in _ESTIMATORS else _plugin(name)
     p = validate_params(params_model(name), params, f"estimator '{name}'")
-    monitor = monitors.create(p.monitor, templates=templates, **p.monitor_params)
+    shared = None
+    if templates is not None and name in _ESTIMATORS and isinstance(p, EstimatorParams):
+        shared = templates.stream(("dead_reckoning", p.accept_dead_reckoning))
+    monitor = monitors.create(p.monitor, templates=shared, **p.monitor_params)
     return cls(p, monitor)
 
 

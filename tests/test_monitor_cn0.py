@@ -628,3 +628,16 @@ def test_monitors_sharing_a_receivers_templates_judge_as_their_own_and_learn_eac
     assert calls == [t for t, _, _ in epochs[:-1]]  # each fix once; the last is learned when the next one is judged
     assert shared[1].template(30.0) == alone[1].template(30.0) and shared[1].offsets() == alone[1].offsets()
     assert calls[-1] == epochs[-1][0] and learned.template(30.0) == alone[1].template(30.0)  # asked, it learns the last
+
+
+def test_estimators_share_a_template_only_when_they_screen_the_receivers_fixes_alike():
+    """A host that takes the receiver's dead-reckoned fixes (GGA 6) judges fixes the others never see, so it learns
+    from its own stream; built-in hosts that screen alike share one template."""
+    templates = monitors.Cn0Templates()
+
+    def learned(**params):
+        return fusion.create("ekf", templates=templates, **params).monitor.members[1].learned
+
+    assert learned() is learned() is fusion.create("pf", templates=templates).monitor.members[1].learned
+    assert learned(accept_dead_reckoning=True) is not learned()
+    assert fusion.create("ekf").monitor.members[1].learned is not learned()  # without a registry: its own

@@ -89,6 +89,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Hashable
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -606,14 +607,21 @@ class Cn0Monitor(Monitor):
 
 class Cn0Templates:
     """The templates learned from one receiver's fixes, one per set of cn0 parameters: every cn0 monitor built with the
-    same registry and parameters (a run's estimators judging one receiver) shares one, learning each fix once."""
+    same registry and parameters (a run's estimators judging one receiver) shares one, learning each fix once. The
+    monitors sharing one must judge the same fixes: hosts that screen the receiver's output differently (one takes its
+    dead-reckoned fixes, one does not) take their templates from different streams (stream)."""
 
     def __init__(self) -> None:
         self._by_params: dict[str, Cn0Template] = {}
+        self._streams: dict[Hashable, Cn0Templates] = {}
 
     def get(self, params: Cn0Params) -> Cn0Template:
         """The template these parameters learn, made on first use."""
         return self._by_params.setdefault(params.model_dump_json(), Cn0Template(params))
+
+    def stream(self, screening: Hashable) -> Cn0Templates:
+        """The templates of the monitors whose hosts pass the receiver's fixes through this screening."""
+        return self._streams.setdefault(screening, Cn0Templates())
 
 
 def _quantile_by_group(values: np.ndarray, group: np.ndarray, counts: np.ndarray, q: float) -> np.ndarray:

@@ -491,8 +491,7 @@ class Cn0Monitor(Monitor):
         return self.learned.offsets()
 
     def check(self, obs: FixObservation, ctx: FixContext) -> Verdict:
-        self._catch_up()
-        self._judged = (obs, self._deficit(obs))
+        self._judged = (obs, self._deficit(obs))  # satellite_deficits first learns the fix committed last
         deficit, sigma, named, note, _ = self._judged[1]
         if sigma is None:
             return Verdict(True, math.nan, note)

@@ -83,6 +83,15 @@ def se3_log(T: np.ndarray) -> np.ndarray:
     return np.concatenate([V_inv @ T[:3, 3], w])
 
 
+def adjoint(T: np.ndarray) -> np.ndarray:
+    """6x6 adjoint of the 4x4 pose T on twists [v, w]: T Exp(xi) T^-1 = Exp(adjoint(T) @ xi)."""
+    R, t = T[:3, :3], T[:3, 3]
+    A = np.zeros((6, 6))
+    A[:3, :3] = A[3:, 3:] = R
+    A[:3, 3:] = skew(t) @ R
+    return A
+
+
 def pose_to_xyzrpy(T: np.ndarray) -> np.ndarray:
     """[x, y, z, roll, pitch, yaw] of a 4x4 pose (R = Rz(yaw) Ry(pitch) Rx(roll), as in ROS)."""
     yaw, pitch, roll = Rotation.from_matrix(T[:3, :3]).as_euler("ZYX")

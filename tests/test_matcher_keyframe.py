@@ -1,5 +1,5 @@
 """gicp against a keyframe (keyframe_m) on charles_river's quays against exact truth: the chained heading drifts less
-than scan to scan, each step is still the motion since the previous scan, and the default is scan to scan."""
+than scan to scan, each step is still the motion since the previous scan, and keyframes are the default."""
 
 from __future__ import annotations
 
@@ -41,8 +41,8 @@ def chains():
     return out
 
 
-def test_keyframes_are_off_by_default():
-    assert matcher.create("gicp").params.keyframe_m == 0.0
+def test_keyframes_are_the_default():
+    assert matcher.create("gicp").params.keyframe_m == 1.0
 
 
 def test_a_keyframe_chain_drifts_less_in_heading(chains):

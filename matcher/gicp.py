@@ -1,5 +1,5 @@
-"""gicp: small_gicp's Generalized-ICP scan-to-scan on de-skewed scans, a fast 6-DoF reference (against a keyframe
-instead with keyframe_m > 0; each result is still the step from the previous good scan).
+"""gicp: small_gicp's Generalized-ICP on de-skewed scans, a fast 6-DoF reference: each scan is registered against a
+keyframe (keyframe_m; 0: against the previous scan) and reported as the step from the previous good scan.
 
 Its covariance and degeneracy come from the point-to-plane information of the solution, each
 reference point's normal weighed by its planarity (matcher.planarity), not from GICP's own Hessian.
@@ -192,8 +192,7 @@ class Gicp(DeskewingMatcher[_Prepared]):
         super().__init__(params)
         self.p = params
         self._from_key = np.eye(4)  # the reference (previous good scan) in the keyframe's lidar frame
-        self._to_key = np.eye(4)  # the scan just matched in the keyframe's frame (committed as _from_key if kept)
-        self._key_kept = False  # whether the match just made may keep its keyframe (not degenerate in the plane)
+        self._to_key: np.ndarray | None = None  # the scan just matched in the keyframe's frame; None: it may not keep it
         self._previous: _Prepared | None = None  # the reference as prepared when it was matched, for the moving screen
 
     def _prepare(self, cloud: Cloud, twist: np.ndarray | None, screen: Screen | None = None) -> _Prepared:
@@ -291,8 +290,7 @@ class Gicp(DeskewingMatcher[_Prepared]):
         }
         if inlier_share < p.min_inlier_share:
             return MatchResult.failure(f"inlier share {inlier_share:.2f} < min_inlier_share {p.min_inlier_share}", **info)
-        self._to_key = self._from_key @ T
-        self._key_kept = not _horizontally_degenerate(degeneracy)
+        self._to_key = None if _horizontally_degenerate(degeneracy) else self._from_key @ T
         info.update(degeneracy.as_info(), sigma2=fit.sigma2, plane_outlier_share=fit.outlier_share)
         return MatchResult(T=T, ok=True, cov=p.add_to(cov), n_points=0, seconds=0.0, info=info)
 
@@ -351,21 +349,22 @@ class Gicp(DeskewingMatcher[_Prepared]):
         horizontal direction or the heading unmeasured (there the kept prior is the answer, and a prior carried from
         an older keyframe compounds: under charles_river's Museum of Science bridge deck the chain ran 105 m along
         the route in 23 s against 49 m scan to scan, and turned 10 deg after it against 2)."""
-        motion = pose_to_xyzrpy(self._to_key)
-        p = self.p
-        far = np.linalg.norm(motion[:3]) > p.keyframe_m or abs(np.degrees(motion[5])) > p.keyframe_deg
-        if not ok or p.keyframe_m == 0.0 or far or not self._key_kept:
+        to_key, self._to_key = self._to_key, None
+        if ok and to_key is not None and self.p.keyframe_m > 0.0 and not self._far(to_key):
+            self._previous, self._cur = self._cur, None
+            self._from_key = to_key
+        else:
             super()._commit(ok)
             self._from_key, self._previous = np.eye(4), None
-        else:
-            self._previous, self._cur = self._cur, None
-            self._from_key = self._to_key
-        self._to_key = np.eye(4)
+
+    def _far(self, to_key: np.ndarray) -> bool:
+        """Whether the motion from the keyframe exceeds keyframe_m or keyframe_deg."""
+        motion = pose_to_xyzrpy(to_key)
+        return bool(np.linalg.norm(motion[:3]) > self.p.keyframe_m or abs(np.degrees(motion[5])) > self.p.keyframe_deg)
 
     def _reset(self) -> None:
         super()._reset()
-        self._from_key = self._to_key = np.eye(4)
-        self._key_kept, self._previous = False, None
+        self._from_key, self._to_key, self._previous = np.eye(4), None, None
 
 
 def _horizontally_degenerate(degeneracy: Degeneracy) -> bool:

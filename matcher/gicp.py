@@ -237,7 +237,7 @@ class Gicp(DeskewingMatcher[_Prepared]):
 
         return screen
 
-    def _held(self, degeneracy: Degeneracy, sigma2: float, answer: np.ndarray, prior: np.ndarray) -> list[np.ndarray]:
+    def _held(self, degeneracy: Degeneracy, sigma2: float, answer: np.ndarray, prior: np.ndarray, dt: float) -> list[np.ndarray]:
         """The free translations along which the motion prior is kept. With no motion known yet (the identity
         predicted), only those the scans did not measure either: a standard deviation sqrt(sigma2 / information) of at
         least degenerate_sigma_m, the covariance's "unknown". Never a horizontal one (within 30 deg) along which GICP's
@@ -246,10 +246,20 @@ class Gicp(DeskewingMatcher[_Prepared]):
         that answer is a measurement and the prior is what is wrong. canal_lock's canyon started gicp from a stopped boat
         (its first answer, 0 m for 0.2 m, is that bias) and kept that prior for 40 s; when a face across the canal then
         measured 0.20 m +- 2 cm a scan, keeping 0 m moved the misfit into pitch (the face's height couples the two), 1.4
-        deg a scan: the chained odometry pitched past 90 deg in 7 s and read as a 180 deg turn. Not the vertical: a
-        floating hull does not travel up or down, its heave oscillates, and in rough_water's waves one scan's heave
-        taken as the vertical prior kept the boat sinking at 3 m/s."""
+        deg a scan: the chained odometry pitched past 90 deg in 7 s and read as a 180 deg turn. Unless the prior is a
+        measured travel (more than three of the answer's standard deviations from none) and the answer changes the
+        speed by more than the prior's own uncertainty allows (three standard deviations of the predicted translation,
+        the speed's random walk included: matcher.motion.SPEED_WALK_MPS_PER_SQRT_S): a boat cannot accelerate so, and
+        the answer is the free direction's error, not travel (a stopped prior is never judged so: canal_lock's, born of
+        the bias, claimed to 3.5 cm, would keep the face's 0.20 m out, and canal_multipath seed 2's chain tilted until
+        its yaw p95 read 14.6 deg). Under the quickstart stretch's Museum
+        of Science bridge deck (seed 5) an answer of 0.82 m a scan against a prior of 0.29 m (truth 0.19 m) was taken,
+        kept as the prior for the next 8 s of free steps, and the misfit went into pitch, 1.3 deg a scan, until the
+        chain turned over (yaw error 158 deg at a success of 0.999). Not the vertical: a floating hull does not travel
+        up or down, its heave oscillates, and in rough_water's waves one scan's heave taken as the vertical prior kept
+        the boat sinking at 3 m/s."""
         known = self.velocity.twist_per_s is not None
+        expected, travel = self.velocity.translation_cov(dt), self.velocity.predict(dt)[:3, 3]
         held = []
         for d, mu in zip(degeneracy.directions, degeneracy.direction_information, strict=True):
             if not d[:3].any():
@@ -259,8 +269,11 @@ class Gicp(DeskewingMatcher[_Prepared]):
                 continue
             sigma = float(np.sqrt(sigma2 / mu))
             u = d[:3] / np.linalg.norm(d[:3])
-            if abs(u[2]) < 0.5 and abs(float(answer[:3, 3] @ u)) > abs(float(prior[:3, 3] @ u)) + 3.0 * sigma:
-                continue  # travel measured beyond the prior's: not the free direction's bias
+            beyond = abs(float(answer[:3, 3] @ u)) > abs(float(prior[:3, 3] @ u)) + 3.0 * sigma
+            stopped = abs(float(travel @ u)) <= 3.0 * sigma  # a prior of no travel: what the bias itself leaves
+            possible = stopped or expected is None or abs(float((answer[:3, 3] - prior[:3, 3]) @ u)) <= 3.0 * float(np.sqrt(u @ expected @ u))
+            if abs(u[2]) < 0.5 and beyond and possible:
+                continue  # travel measured beyond the prior's, at a speed the boat can reach: not the free direction's bias
             if known or sigma >= self.p.degenerate_sigma_m:
                 held.append(d)
         return held
@@ -322,7 +335,7 @@ class Gicp(DeskewingMatcher[_Prepared]):
             )
             fit = cur.plane_fit(key, res.T_target_source, p)
             cov_param, degeneracy = covariance_from_hessian(fit.H, fit.sigma2, p.degenerate_ratio, p.degenerate_sigma_m, p.degenerate_sigma_rad)
-            T = back @ keep_prior_along(res.T_target_source, prior, fit.H, self._held(degeneracy, fit.sigma2, res.T_target_source, prior))
+            T = back @ keep_prior_along(res.T_target_source, prior, fit.H, self._held(degeneracy, fit.sigma2, res.T_target_source, prior, dt))
             # GICP's left perturbation of the pose in the keyframe's frame, carried into the step's: Exp(Ad(back) xi) T
             cov = to_xyzrpy(adjoint(back) @ cov_param @ adjoint(back).T, left_perturbation_jacobian(T))
             return T, (res, fit, cov, degeneracy)

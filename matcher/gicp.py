@@ -251,15 +251,15 @@ class Gicp(DeskewingMatcher[_Prepared]):
         measured travel and the answer changes the speed by more than the prior's own uncertainty allows (both by three
         standard deviations of the predicted translation, the speed's random walk included:
         matcher.motion.SPEED_WALK_MPS_PER_SQRT_S): a boat cannot accelerate so, and the answer is the free direction's
-        error, not travel. A prior of no measured travel is never judged so: canal_lock's, born of the bias, would keep
-        the face's 0.20 m out (canal_multipath seed 2's chain then tilted until its yaw p95 read 14.6 deg); nor is a
-        prior judged stopped by the answer's own spread (steel_bridge_compass [fast] seed 1: a prior of 0.18 m a scan
-        within three of an answer's 6 cm, which then moved it to 1.50 m, and the chain turned over). Under the quickstart stretch's Museum
-        of Science bridge deck (seed 5) an answer of 0.82 m a scan against a prior of 0.29 m (truth 0.19 m) was taken,
-        kept as the prior for the next 8 s of free steps, and the misfit went into pitch, 1.3 deg a scan, until the
-        chain turned over (yaw error 158 deg at a success of 0.999). Not the vertical: a floating hull does not travel
-        up or down, its heave oscillates, and in rough_water's waves one scan's heave taken as the vertical prior kept
-        the boat sinking at 3 m/s."""
+        error, not travel. Under the quickstart stretch's Museum of Science bridge deck (seed 5) an answer of 0.82 m a
+        scan against a prior of 0.29 m (truth 0.19 m) was taken, kept as the prior for the next 8 s of free steps, and
+        the misfit went into pitch, 1.3 deg a scan, until the chain turned over (yaw error 158 deg at a success of
+        0.999). A prior of no measured travel is never judged so: canal_lock's, born of the bias, would keep the face's
+        0.20 m out (canal_multipath seed 2's chain then tilted until its yaw p95 read 14.6 deg); nor is a prior judged
+        stopped by the answer's own spread (steel_bridge_compass [fast] seed 1: a prior of 0.18 m a scan within three of
+        an answer's 6 cm counted as stopped, an answer of 1.50 m was taken, and the chain turned over). Not the
+        vertical: a floating hull does not travel up or down, its heave oscillates, and in rough_water's waves one
+        scan's heave taken as the vertical prior kept the boat sinking at 3 m/s."""
         known = self.velocity.twist_per_s is not None
         expected, travel = self.velocity.translation_cov(dt), self.velocity.predict(dt)[:3, 3]
         held = []

@@ -272,9 +272,9 @@ class Gicp(DeskewingMatcher[_Prepared]):
             sigma = float(np.sqrt(sigma2 / mu))
             u = d[:3] / np.linalg.norm(d[:3])
             beyond = abs(float(answer[:3, 3] @ u)) > abs(float(prior[:3, 3] @ u)) + 3.0 * sigma
-            spread = math.inf if expected is None else 3.0 * float(np.sqrt(u @ expected @ u))
-            stopped = abs(float(travel @ u)) <= spread  # no travel measured: what the free direction's bias leaves
-            possible = stopped or abs(float((answer[:3, 3] - prior[:3, 3]) @ u)) <= spread
+            reach = math.inf if expected is None else 3.0 * float(np.sqrt(u @ expected @ u))  # 3 sigma of the prior's travel
+            stopped = abs(float(travel @ u)) <= reach  # no travel measured: what the free direction's bias leaves
+            possible = stopped or abs(float((answer[:3, 3] - prior[:3, 3]) @ u)) <= reach
             if abs(u[2]) < 0.5 and beyond and possible:
                 continue  # travel measured beyond the prior's, at a speed the boat can reach: not the free direction's bias
             if known or sigma >= self.p.degenerate_sigma_m:

@@ -35,16 +35,20 @@ class Alignment:
     def start_velocity(self, odometry: tuple[np.ndarray, np.ndarray] | None, gps_sigma_mps: float) -> tuple[np.ndarray, np.ndarray] | None:
         """The body velocity (forward, left) a filter starts with and its 2x2 covariance: the odometry's last step (3-vector
         and 3x3 covariance, as OdometryTrack.velocity gives them) fused with the receiver's velocity over ground, uncertain
-        by gps_sigma_mps per axis, in information form. Where the matcher observed the motion its step dominates; where it
+        by gps_sigma_mps per axis (across the heading, also by its speed times the heading's own uncertainty: the body
+        frame it is turned into is this alignment's), in information form. Where the matcher observed the motion its step dominates; where it
         left a direction unobserved (a degenerate match keeps its own constant-velocity prior there, 1e6 m^2) the
         receiver's velocity does, instead of a prior that never saw the motion (rough_water: gicp's 0.04 m/s against the
         boat's 2 m/s at start-up). None when neither is known."""
         ground = None if self.ground_velocity is None else rot2(-float(self.pose[2])) @ self.ground_velocity
         if ground is None:
             return None if odometry is None else (odometry[0][:2].copy(), odometry[1][:2, :2].copy())
-        info_gps = np.eye(2) / gps_sigma_mps**2
+        # turned into the body by a heading known to sigma_yaw, the receiver's velocity is that much less sure across it
+        across = gps_sigma_mps**2 + float(ground @ ground) * max(float(self.cov[2, 2]), 0.0)
+        cov_gps = np.diag(np.array([gps_sigma_mps**2, across]))
+        info_gps = np.linalg.inv(cov_gps)
         if odometry is None:
-            return ground, np.eye(2) * gps_sigma_mps**2
+            return ground, cov_gps
         mean, cov = odometry[0][:2], odometry[1][:2, :2]
         info_odo = np.linalg.pinv(0.5 * (cov + cov.T), hermitian=True)
         fused = np.linalg.inv(info_odo + info_gps)

@@ -13,6 +13,7 @@ gps_correlation_s, plus a small white part; with gps_correlation_s = 0 fixes are
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 from pydantic import Field
@@ -22,7 +23,7 @@ from fusion.bootstrap import Alignment
 from fusion.estimator import Estimator
 from fusion.geometry import between, compose, drot2, rot2
 from fusion.monitors import Monitor
-from fusion.observation import FixObservation
+from fusion.observation import POSITION_QUALITIES, FixObservation
 from fusion.params import MotionModelParams
 from riverbench.angles import wrap_angle
 
@@ -43,6 +44,46 @@ class EkfParams(MotionModelParams):
         gt=0.5,
         lt=1.0,
         description="chi-square (3 dof) gate on a match's innovation; a match beyond it is refused as a matcher failure [0.999999, gate at 30.7]",
+    )
+    sway_time_constant_s: float | None = Field(
+        5.0,
+        gt=0,
+        description="the sideways body velocity decays towards zero with this time constant, s: a hull's sway is damped "
+        "(the VRX WAM-V 16 model, sim.dynamics: (180 + 18) kg / 40 N s/m = 5 s), so without a measurement of it (no "
+        "match, or one that leaves it free) the filter does not let it drift, and with the receiver's velocity over "
+        "ground, which fixes only the sum of the heading's and the sideslip's shares across the track, it is the "
+        "heading that takes the difference [5.0; None: a random walk, as before the receiver's velocity was fused]",
+    )
+    gps_velocity_sigma_mps: float | None = Field(
+        0.06,
+        gt=0,
+        description="per-axis sigma of the receiver's velocity over ground (RMC speed and course: Doppler, sim.doppler) at "
+        "HDOP 1, m/s; scaled by the fix's HDOP, as the range rates map through the same geometry as the ranges [0.06: "
+        "0.05 m/s at the median, the u-blox NEO-M8N and ZED-F9P data sheets' velocity accuracy, at the library's median "
+        "HDOP of about 0.7 is 0.042 per axis. None: the velocity is not used]",
+    )
+    gps_velocity_max_hdop: float = Field(
+        2.5,
+        gt=0,
+        description="a fix with a larger HDOP gives no velocity [2.5: the bound the start-up alignment takes a heading from "
+        "the receiver's track under, init_max_hdop]: there the satellites left are few, low and on one side, some "
+        "reflected, and their paths' rates are no noise that HDOP scales (quickstart, the Museum of Science deck's edge: "
+        "4.3 m/s reported for 1.6 at HDOP 15, inside a gate widened by that HDOP)",
+    )
+    gps_velocity_gate_prob: float = Field(
+        0.999,
+        gt=0.5,
+        lt=1.0,
+        description="chi-square (2 dof) gate on the velocity's innovation; a velocity beyond it is not used [0.999, gate at 13.8]",
+    )
+    gps_velocity_window: int | None = Field(
+        25,
+        ge=2,
+        description="accepted velocities over which the velocity noise is estimated from its innovations (innovation-based "
+        "adaptive estimation, Mohamed and Schwarz 1999, J. Geodesy 73:193-203): the noise used is the larger of the "
+        "nominal and the window's innovation covariance less the filter's own share, so the antenna's sway on its mast in "
+        "waves (rough_water, sea state 3: 0.17 m/s at the median), which a planar filter does not model, widens it [25: "
+        "5 s of fixes at 5 Hz, a few wave periods]",
     )
 
 
@@ -66,6 +107,8 @@ class Ekf(Estimator):
         self._init = False
         self._odom_gate = float(chi2.ppf(params.odom_gate_prob, 3))
         self._bg: tuple[float, float] | None = None  # the gyro bias and its variance kept across a restart
+        self._velocity_gate = float(chi2.ppf(params.gps_velocity_gate_prob, 2))
+        self._velocity_excess: deque[np.ndarray] = deque(maxlen=params.gps_velocity_window or 1)  # innovation outer products less H P H^T
 
     @property
     def initialized(self) -> bool:
@@ -90,6 +133,13 @@ class Ekf(Estimator):
         if ground is not None:  # the receiver's velocity where the odometry did not see the motion
             self.x[V : VL + 1] = ground[0]
             self.P[V : VL + 1, V : VL + 1] = np.diag(np.clip(np.diag(ground[1]), 0.25, 9.0))
+        if self.params.sway_time_constant_s is not None:  # the hull's sway prior: zero, as uncertain as its steady state
+            steady = self.params.lateral_accel_sigma**2 * self.params.sway_time_constant_s / 2.0
+            info = np.linalg.inv(self.P[V : VL + 1, V : VL + 1])
+            info[1, 1] += 1.0 / steady
+            cov = np.linalg.inv(info)
+            self.x[V : VL + 1] = cov @ (info - np.diag([0.0, 1.0 / steady])) @ self.x[V : VL + 1]
+            self.P[V : VL + 1, V : VL + 1] = cov
         clone = alignment.pose
         last_pose = self.odometry.last_pose
         if now is not None and last_pose is not None and self.odometry.last_stamp == self._ref_stamp:
@@ -131,6 +181,10 @@ class Ekf(Estimator):
         else:
             F[TH, W] = dt
             self.x[TH] = wrap_angle(th + self.x[W] * dt)
+        if p.sway_time_constant_s is not None:
+            decay = math.exp(-dt / p.sway_time_constant_s)
+            self.x[VL] *= decay
+            F[VL, VL] = decay
         Q = np.zeros((N, N))
         q_acc = np.array([p.accel_sigma**2, p.lateral_accel_sigma**2, math.radians(p.yaw_accel_sigma_deg) ** 2])
         # white acceleration integrated over dt: velocity dt, position-velocity dt^2/2, position dt^3/3
@@ -154,9 +208,12 @@ class Ekf(Estimator):
             Q[BIAS, BIAS] = np.eye(2) * self._bias_var * (1.0 - rho**2)
         self.P = F @ self.P @ F.T + Q
 
-    def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
+    def _update(self, y: np.ndarray, H: np.ndarray, R: np.ndarray, considered: tuple[int, ...] = ()) -> None:
+        """Kalman update (Joseph form); the `considered` states keep their values (their gain rows are zero: a Schmidt
+        'consider' update, Schmidt 1966), their covariance with the rest still updated consistently."""
         S = H @ self.P @ H.T + R
         K = np.linalg.solve(S, H @ self.P).T
+        K[list(considered)] = 0.0
         self.x += K @ y
         self.x[TH] = wrap_angle(self.x[TH])
         self.x[CTH] = wrap_angle(self.x[CTH])
@@ -248,6 +305,42 @@ class Ekf(Estimator):
         h, H, R = self._gps_model(obs)
         return h, H @ self.P @ H.T, R
 
+    def _use_velocity(self, obs: FixObservation) -> str:
+        """Update with the receiver's velocity over ground: the antenna's, R(yaw) (v + yaw rate x lever), which makes the
+        heading observable wherever the boat moves, and the speed along a quay or a deck the matcher leaves free. A
+        Doppler velocity carries none of the code's errors that make a fix refused (a reflection's extra path moves the
+        range, and the velocity only by how fast that path changes), but a reflected satellite's path does change, so
+        only a fix the monitor trusts gives its velocity, which its own innovation gate then judges. The yaw rate is
+        considered, not updated (a Schmidt update): the odometry or the gyro measures turns; the course's noise of a few
+        degrees a fix, taken into the rate, would turn the heading between fixes (bu_truss_bridge at start-up: the yaw
+        rate, 18 deg/s uncertain, jumped 7 deg/s on one fix). Returns why it was not used ('' when it was)."""
+        ground = obs.ground_velocity
+        sigma = self.params.gps_velocity_sigma_mps
+        if sigma is None or ground is None or obs.quality not in POSITION_QUALITIES or not self._init:
+            return "no velocity"
+        if obs.hdop > self.params.gps_velocity_max_hdop:
+            return f"velocity not used: HDOP {obs.hdop:.1f} > {self.params.gps_velocity_max_hdop:g}"
+        th, lx, ly = self.x[TH], self.lever[0], self.lever[1]
+        body = np.array([self.x[V] - self.x[W] * ly, self.x[VL] + self.x[W] * lx])
+        r = rot2(th)
+        H = np.zeros((2, self.n))
+        H[:, TH] = drot2(th) @ body
+        H[:, V], H[:, VL] = r[:, 0], r[:, 1]
+        if not self.uses_imu:  # with an IMU the yaw rate is the gyro's, reported, not a state the update may move
+            H[:, W] = r @ np.array([-ly, lx])
+        y = ground - r @ (body + self._antenna_sway(obs.stamp))
+        own = H @ self.P @ H.T
+        nominal = np.eye(2) * (sigma * obs.hdop) ** 2
+        adaptive = self.params.gps_velocity_window is not None and len(self._velocity_excess) >= 2
+        excess = np.mean(self._velocity_excess, axis=0) if adaptive else np.zeros((2, 2))
+        R = nominal + _positive_part(excess - nominal)
+        nis = float(y @ np.linalg.solve(own + R, y))
+        if nis > self._velocity_gate:
+            return f"velocity refused: innovation {nis:.1f} > gate {self._velocity_gate:.1f}"
+        self._velocity_excess.append(np.outer(y, y) - own)
+        self._update(y, H, R, considered=(W,))
+        return ""
+
     def _relock(self, obs: FixObservation) -> None:
         xy = obs.xy - rot2(self.x[TH]) @ self.lever
         shift = xy - self.x[X : Y + 1]
@@ -286,3 +379,9 @@ class Ekf(Estimator):
 
     def _cov3(self) -> np.ndarray:
         return self.P[POSE, POSE].copy()
+
+
+def _positive_part(m: np.ndarray) -> np.ndarray:
+    """The symmetric matrix m with its negative eigenvalues set to zero (what of an estimated excess is a variance)."""
+    w, v = np.linalg.eigh(0.5 * (m + m.T))
+    return (v * np.maximum(w, 0.0)) @ v.T

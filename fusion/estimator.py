@@ -9,7 +9,7 @@ from scipy.stats import chi2
 
 from fusion.bootstrap import HEADING_FROM_COMPASS, HEADING_FROM_COURSE, HEADING_GIVEN, HEADING_UNKNOWN, Alignment, Bootstrap
 from fusion.compass_check import CompassGyroBudget, CompassGyroCheck
-from fusion.geometry import drot2, is_psd, lidar_to_base, planar, pose_matrix, rot2
+from fusion.geometry import drot2, is_psd, lidar_to_base, planar, pose_matrix, rot2, tilt_rate
 from fusion.integrity import protection_level
 from fusion.monitors import FixContext, Monitor
 from fusion.observation import FixObservation, allowing, screen, screen_rule
@@ -27,6 +27,11 @@ UNOBSERVED_VAR = 1e6
 """Variance (m^2) given to a match direction that carries no information."""
 HEIGHT_WALK_M2_PER_S = 0.01
 """Random-walk rate of base_link height (water level, waves) in the height filter."""
+
+
+TILT_RATE_AGE_S = 0.3
+"""A match's roll and pitch rates stand for the hull's within this long of its stamp: a few revolutions at 10 Hz, a tenth
+of a short wave's period (rough_water's are 3-5 s)."""
 
 
 class Estimator:
@@ -64,6 +69,7 @@ class Estimator:
         self._refused_since: float | None = None  # first refused fix of an unbroken refused run
         self._own_start = params.initial_pose is not None  # started from a given pose, not the fixes (FixContext.own_start)
         self._ref_stamp: float | None = None
+        self._tilt_rate: tuple[float, np.ndarray] | None = None  # (stamp, roll and pitch rate vector, rad/s) of the last match
         self._last_measured: float | None = None
         self._gyro_rate: float | None = None  # the latest measured yaw rate (rad/s): yaw follows the gyro once it is set
         self._gyro_noise = 0.0  # its white noise density, rad/s/sqrt(Hz)
@@ -147,6 +153,11 @@ class Estimator:
             self._use_fix(allowing(obs, verdict.allowance_m) if verdict.trusted else obs, verdict)
         except np.linalg.LinAlgError as err:  # a numerically broken update: skip it, keep running
             self.events.append(Event(obs.stamp, "fix", f"GPS update failed: {err}"))
+        if self.initialized and verdict.trusted:
+            try:
+                self._use_velocity(obs)
+            except np.linalg.LinAlgError as err:
+                self.events.append(Event(obs.stamp, "fix", f"GPS velocity update failed: {err}"))
         self._watch_lock(obs, verdict)
         self._check_finite(obs.stamp, "fix")
         self._last_measured = obs.stamp
@@ -198,6 +209,10 @@ class Estimator:
     def _relock(self, obs: FixObservation) -> None:
         """Move the position onto this fix with its uncertainty (heading and motion kept)."""
 
+    def _use_velocity(self, obs: FixObservation) -> str:
+        """Update with the receiver's velocity over ground (filters that model it override); why it was not used."""
+        return "no velocity model"
+
     def _use_fix(self, obs: FixObservation, verdict: Verdict) -> None:
         """Update with a fix the monitor trusts (gps_only overrides: it takes every fix)."""
         if verdict.trusted and self.initialized:
@@ -219,7 +234,7 @@ class Estimator:
             if not info.get("gated", False):
                 self._new_reference(stamp)  # the matcher restarts tracking from this scan
             return
-        step, step_cov, why = self._planar_step(result)
+        step, step_cov, why, rotation = self._planar_step(result)
         if self._ref_stamp is None:
             why = why or "no reference scan seen before this match"
         if why:
@@ -237,6 +252,8 @@ class Estimator:
             return
         self._check_finite(stamp, "match")
         self.odometry.add(stamp, step, step_cov)
+        assert self._ref_stamp is not None  # a match without one returned above
+        self._tilt_rate = (stamp, tilt_rate(rotation, stamp - self._ref_stamp))
         self._ref_stamp = stamp
         if not self.initialized and self.params.initial_pose is not None:
             self._initialise_from_params(stamp, self.params.initial_pose)
@@ -358,18 +375,29 @@ class Estimator:
         self.events.append(Event(t if math.isfinite(t) else self.stamp, source, reason))
         return reason
 
-    def _planar_step(self, result: MatchResult) -> tuple[np.ndarray, np.ndarray, str]:
+    def _planar_step(self, result: MatchResult) -> tuple[np.ndarray, np.ndarray, str, np.ndarray]:
+        """The match's planar step (dx, dy, dyaw) in base_link, its 3x3 covariance, why it cannot be used ('' when it
+        can) and its whole rotation in base_link (3x3: the roll and pitch the planar step leaves out)."""
         T = np.asarray(getattr(result, "T", None), dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            return np.zeros(3), np.zeros((3, 3)), "match T is not a finite 4x4 matrix"
+            return np.zeros(3), np.zeros((3, 3)), "match T is not a finite 4x4 matrix", np.eye(3)
         cov = getattr(result, "cov", None)
         cov = self._default_odom_cov if cov is None else np.asarray(cov, dtype=float)
         if cov.shape != (6, 6) or not is_psd(cov):
-            return np.zeros(3), np.zeros((3, 3)), "match covariance is not a finite 6x6 PSD matrix"
+            return np.zeros(3), np.zeros((3, 3)), "match covariance is not a finite 6x6 PSD matrix", np.eye(3)
         T_base, cov_base = lidar_to_base(T, cov, self.mount)
         step, step_cov = planar(T_base, cov_base)
         step_cov = 0.5 * (step_cov + step_cov.T) + self._odom_floor + np.diag([1e-10, 1e-10, 1e-12])
-        return step, self._drop_unobserved(step_cov), ""
+        return step, self._drop_unobserved(step_cov), "", T_base[:3, :3]
+
+    def _antenna_sway(self, stamp: float) -> np.ndarray:
+        """The antenna's horizontal velocity (body frame, m/s) from the hull's roll and pitch rates, as the last match
+        measured them (its rotation since the scan before), within TILT_RATE_AGE_S of stamp; zero without one. A planar
+        filter does not model roll and pitch, but in waves they swing an antenna on its mast: omega x r, with r the
+        antenna's offset on base_link (rough_water, sea state 3: 0.17 m/s at the median, 0.33 at p95 for 1.3 m)."""
+        if self._tilt_rate is None or abs(stamp - self._tilt_rate[0]) > TILT_RATE_AGE_S:
+            return np.zeros(2)
+        return np.cross(self._tilt_rate[1], self.antenna)[:2]
 
     def _slip_allowance(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> np.ndarray:
         """Matchers on weakly constrained river scenes slip along the direction of motion with a tight

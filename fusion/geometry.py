@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from riverbench.angles import wrap_angle
 
@@ -85,3 +86,13 @@ def is_psd(cov: np.ndarray) -> bool:
     if not np.all(np.isfinite(cov)) or not np.allclose(cov, cov.T, rtol=1e-6, atol=1e-12):
         return False
     return bool(np.linalg.eigvalsh(0.5 * (cov + cov.T)).min() >= -1e-9 * max(1.0, np.abs(cov).max()))
+
+
+def tilt_rate(rotation: np.ndarray, dt: float) -> np.ndarray:
+    """The roll and pitch part of the angular velocity (rad/s, body frame, yaw component zero) of a rotation over dt s:
+    its rotation vector over dt, whose yaw the planar filters take from the step itself."""
+    if not dt > 0.0:
+        return np.zeros(3)
+    rate = Rotation.from_matrix(rotation).as_rotvec() / dt
+    rate[2] = 0.0
+    return rate

@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from riverbench.rng import stream
 from sim import wls
 from sim.constellation import CN0_OFFSET_DB, CODE_NOISE_SCALE, DEFAULT_EPHEMERIS, NMEA_SYSTEM, Constellation, System
+from sim.doppler import DopplerConfig, DopplerVelocity
 from sim.ephemeris import EphemerisError
 from sim.geodesy import LocalFrame
 from sim.gnss_fix import FixTruth, GnssFix, SatelliteReport, SatelliteTruth
@@ -41,6 +42,11 @@ DEFAULT_EPOCH = datetime(2018, 7, 29, 15, 0, 0, tzinfo=UTC)
 DEFAULT_CONSTELLATIONS: tuple[System, ...] = ("GPS", "GLONASS", "GALILEO", "BEIDOU")
 """A modern single-frequency receiver tracks all four global systems (u-blox M9/M10 and F9 default configuration,
 CFG-SIGNAL: GPS, GLONASS, Galileo, BeiDou enabled)."""
+
+
+VELOCITY_STEP_S = 1e-3
+"""Step of the antenna's true velocity by differences: over 1 ms a mast swaying in waves (1-2 m/s^2) moves the
+difference by 1-2 mm/s, far below the Doppler's centimetres a second."""
 
 
 class OutageWindow(BaseModel):
@@ -122,6 +128,7 @@ class GnssConfig(BaseModel):
     antenna_offset_m: tuple[float, float, float] = Field((0.0, 0.0, 1.3), description="Antenna phase centre on base_link (x fwd, y left, z up), m.")
     noise: PseudorangeNoise = Field(default_factory=PseudorangeNoise, description="Pseudorange error model.")
     multipath: MultipathConfig = Field(default_factory=MultipathConfig, description="Facade reflections.")
+    doppler: DopplerConfig = Field(default_factory=DopplerConfig, description="Range-rate errors of the reported velocity (sim.doppler).")
     foliage_loss_db_per_m: float = Field(
         1.3,
         ge=0.0,
@@ -234,6 +241,7 @@ class GnssReceiver:
         self._nmea_system = [NMEA_SYSTEM[s] for s in self.constellation.system]
         self._errors = RangeErrors(self.config.noise, len(self.constellation), stream(self.seed, "gnss.range_errors"))
         self._cn0_rng = stream(self.seed, "gnss.cn0")
+        self._doppler = DopplerVelocity(self.config.doppler, len(self.constellation), stream(self.seed, "gnss.doppler"))
         self._navigator = _Navigator(self.config)
         self._open_sky = _Navigator(self.config)
         self._smoothing = SmoothingLock(self.config.noise, len(self.constellation), stream(self.seed, "gnss.smoothing"))
@@ -275,6 +283,14 @@ class GnssReceiver:
         if not np.isfinite(pose).all():
             raise ValueError(f"gnss: trajectory pose at t={t} s is not finite (NaN or inf)")
         return pose[:3, :3] @ self._offset + pose[:3, 3]
+
+    def _antenna_velocity(self, trajectory, t: float, antenna: np.ndarray) -> np.ndarray:
+        """The antenna's true velocity at t (ENU, m/s): its position VELOCITY_STEP_S before t (after t at the
+        trajectory's start) differenced with `antenna`, its position at t."""
+        try:
+            return (antenna - self._antenna(trajectory, t - VELOCITY_STEP_S)) / VELOCITY_STEP_S
+        except ValueError:  # t is the trajectory's first time
+            return (self._antenna(trajectory, t + VELOCITY_STEP_S) - antenna) / VELOCITY_STEP_S
 
     def fix(self, world, trajectory, t: float) -> GnssFix:
         """The receiver's output at scenario time t (s); times must increase from call to call. `world` is a World
@@ -331,6 +347,9 @@ class GnssReceiver:
 
         solution = self._navigator.solve(sat_enu[tracked], pseudorange[tracked], sigma[tracked])
         enu, velocity, quality = self._navigator.step(t, solution)
+        doppler = self._doppler.error(t, view, tracked, dirs, el, nlos, extra, 1.0 / self.config.rate_hz)
+        if solution is not None and doppler is not None:  # a measured fix reports the Doppler velocity, a coast its filter's
+            velocity = self._antenna_velocity(trajectory, t, antenna) + doppler
         open_sky_enu, _, open_sky_quality = self._open_sky.step(t, self._open_sky.solve(sat_enu[clear], open_sky_range[clear], open_sky_sigma[clear]))
 
         prn = self.constellation.prn[view].tolist()

@@ -140,12 +140,15 @@ def test_a_filter_started_on_a_degenerate_match_takes_its_speed_from_the_receive
 
 def test_the_start_velocity_takes_the_receivers_where_the_odometry_did_not_observe():
     """Information-form fusion, by hand: forward unobserved by the odometry (1e6 m^2/s^2) -> the receiver's 2 m/s;
-    sideways observed to 0.01 m/s -> the odometry's 0.1 m/s, the receiver's 0.5 m/s moving it by 0.04%."""
+    sideways observed to 0.01 m/s -> the odometry's 0.1 m/s, the receiver's 0.5 m/s moving it by a few hundredths of a
+    percent: turned into the body by a heading known to 2 deg, the receiver's sideways velocity is uncertain by its
+    0.5 m/s sigma and by its speed (2.06 m/s) times 2 deg, in quadrature."""
     heading = np.radians(30.0)
     ground = 2.0 * np.array([np.cos(heading), np.sin(heading)]) + 0.5 * np.array([-np.sin(heading), np.cos(heading)])
-    alignment = Alignment(10.0, np.array([0.0, 0.0, heading]), np.eye(3), ground_velocity=ground)
+    alignment = Alignment(10.0, np.array([0.0, 0.0, heading]), np.diag([1.0, 1.0, np.radians(2.0) ** 2]), ground_velocity=ground)
     odometry = (np.array([0.04, 0.1, 0.0]), np.diag([1e6, 1e-4, 1e-6]))
     mean, cov = alignment.start_velocity(odometry, 0.5)
     assert mean[0] == pytest.approx(2.0, abs=1e-6) and cov[0, 0] == pytest.approx(0.25, rel=1e-6)
-    assert mean[1] == pytest.approx(0.1 + (0.5 - 0.1) * 1e-4 / (1e-4 + 0.25), abs=1e-9)
+    across = 0.25 + (2.0**2 + 0.5**2) * np.radians(2.0) ** 2
+    assert mean[1] == pytest.approx(0.1 + (0.5 - 0.1) * 1e-4 / (1e-4 + across), abs=1e-9)
     assert Alignment(10.0, np.zeros(3), np.eye(3)).start_velocity(odometry, 0.5)[0] == pytest.approx([0.04, 0.1])

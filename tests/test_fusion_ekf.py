@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import replace
 
@@ -12,6 +13,7 @@ from scipy.stats import chi2
 
 import fusion
 from fusion.geometry import compose
+from fusion.observation import screen
 
 EXACT_ODOMETRY = {"odom_floor_sigma_m": 0.0, "odom_floor_sigma_yaw_deg": 0.0, "odom_slip_frac": 0.0, "odom_slip_sigmas": 0.0}
 """The synthetic matcher's covariance is exact: no floor or slip allowance on top of it."""
@@ -248,3 +250,39 @@ def test_a_fix_trusted_with_an_allowance_weighs_in_as_a_noisier_one(kind):
     assert moved[0.0] > moved[3.0] > 0.0 and abs(moved[1000.0]) < jitter * moved[0.0]
     if kind == "ekf":  # Gaussian: the pull falls with every allowance (the pf's Student-t pulls hardest at a scale near the offset)
         assert moved[0.0] > moved[1.0] > moved[3.0]
+
+
+def _yaw_p95_deg(spec: StreamSpec, **params) -> float:
+    events, t_grid, poses = generate(spec)
+    out = run(fusion.create("ekf", matcher="m", **params), events)
+    settled = out["stamp"] > 20.0
+    return float(np.degrees(np.percentile(np.abs(errors(out, t_grid, poses)[settled, 2]), 95)))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_receivers_velocity_gives_the_heading(seed):
+    """Exact velocities over ground (RMC/VTG) on a weaving track: with the matcher's steps the heading's p95 falls from
+    the fixes' track (6-8 deg) to about 2 deg; with the matcher failing throughout, from 20-40 deg to under 6 (the
+    sideslip decays with the hull's sway time constant, so the velocity's share across the track goes to the heading)."""
+    with_odometry = StreamSpec(duration=90.0, report_velocity=True, seed=seed)
+    assert _yaw_p95_deg(with_odometry) < 3.0 < _yaw_p95_deg(with_odometry, gps_velocity_sigma_mps=None)
+    no_odometry = replace(with_odometry, failing_matcher=True)
+    assert _yaw_p95_deg(no_odometry) < 6.0 < _yaw_p95_deg(no_odometry, gps_velocity_sigma_mps=None)
+
+
+def test_a_velocity_off_by_metres_a_second_or_at_a_decks_edge_is_not_used():
+    """A velocity turned 90 deg off the track (a reflected satellite's path rate of metres a second) fails the gate; one
+    at HDOP 8 is not used whatever it says; neither moves the state, and the true one is used."""
+    spec = StreamSpec(duration=40.0, report_velocity=True, seed=1)
+    events, _, _ = generate(spec)
+    ekf = fusion.create("ekf", matcher="m")
+    run(ekf, [e for e in events if e[1] < 30.0])
+    fix = next(e[2] for e in events if e[0] == "fix" and e[1] >= 30.0)
+    turned = replace(fix, course_deg=(fix.course_deg + 90.0) % 360.0)
+    deck_edge = replace(fix, hdop=8.0, course_deg=(fix.course_deg + 30.0) % 360.0)
+    for bad, why in ((turned, "velocity refused: innovation"), (deck_edge, "velocity not used: HDOP 8.0 > 2.5")):
+        probe = copy.deepcopy(ekf)
+        state = probe.x.copy()
+        assert probe._use_velocity(screen(bad, probe.params.uere_m, False)[0]).startswith(why)
+        np.testing.assert_array_equal(probe.x, state)
+    assert copy.deepcopy(ekf)._use_velocity(screen(fix, ekf.params.uere_m, False)[0]) == ""

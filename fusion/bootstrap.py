@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fusion.geometry import compose, rot2
+from fusion.geometry import compose, drot2, rot2
 from fusion.observation import FixObservation
 from fusion.odometry import OdometryTrack
 from riverbench.angles import wrap_angle
@@ -139,6 +139,30 @@ class Bootstrap:
         # the fixes' errors are correlated over tens of seconds: their mean is as uncertain as one; the lever's way is unknown
         sigma2 = float(np.mean([f.var for f in recent])) + float(self.lever @ self.lever)
         return Alignment(stamp, np.array([centre[0], centre[1], 0.0]), np.diag([sigma2, sigma2, UNKNOWN_YAW_VAR]), HEADING_UNKNOWN)
+
+    def under_way(self, stamp: float, min_speed_mps: float, yaw_var: float) -> Alignment | None:
+        """The pose of a vessel under way from the receiver's course over ground, its heading that course as uncertain as
+        `yaw_var` (leeway and drift), when the latest kept fix is at `stamp` and the last min_fixes kept fixes all report
+        a speed of at least min_speed_mps (the heading is their mean velocity's direction): a receiver's Doppler velocity
+        gives the direction of travel at once, where the travel alignment waits for init_baseline_m of track (13 s on
+        open_river, whose matcher sees nothing). The antenna sits at the fix; base_link is the lever back from it along
+        that heading, so its position shares the heading's uncertainty through the lever."""
+        if len(self._samples) < self.min_fixes or self._samples[-1].stamp != stamp:
+            return None
+        last = self._samples[-self.min_fixes :]
+        velocities = [f.ground_velocity for f in last if f.ground_velocity is not None and f.speed_mps >= min_speed_mps]
+        if len(velocities) < len(last):
+            return None
+        latest = last[-1]
+        velocity = np.mean(velocities, axis=0)  # their white Doppler noise averages down
+        yaw = float(np.arctan2(velocity[1], velocity[0]))
+        xy = latest.xy - rot2(yaw) @ self.lever
+        lever_yaw = -drot2(yaw) @ self.lever  # d(base_link xy) / d(yaw) at a fixed antenna
+        cov = np.zeros((3, 3))
+        cov[:2, :2] = np.eye(2) * latest.var + np.outer(lever_yaw, lever_yaw) * yaw_var
+        cov[:2, 2] = cov[2, :2] = lever_yaw * yaw_var
+        cov[2, 2] = yaw_var
+        return Alignment(stamp, np.array([xy[0], xy[1], yaw]), cov, HEADING_FROM_COURSE, ground_velocity=latest.ground_velocity)
 
     def _fit(self) -> Alignment | None:
         gps = np.array([f.xy for f in self._samples])

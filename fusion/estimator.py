@@ -467,6 +467,8 @@ class Estimator:
             return
         p = self.params
         alignment = self._bootstrap.alignment(obs.stamp) or self._bootstrap.at_rest(obs.stamp, p.init_static_speed_mps, p.init_static_s)
+        if alignment is None and p.init_on_course:
+            alignment = self._bootstrap.under_way(obs.stamp, p.init_course_speed_mps, math.radians(p.course_heading_sigma_deg) ** 2)
         if alignment is not None:
             self._start(alignment)
 

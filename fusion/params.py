@@ -123,7 +123,17 @@ class EstimatorParams(BaseEstimatorParams):
         1.0,
         gt=0,
         description="a vessel that started at rest takes its heading from the receiver's course over ground (RMC/VTG) once "
-        "it reports at least this speed [1 m/s: the course's own error, about speed error / speed, is then 3 deg]",
+        "it reports at least this speed, and one under way starts on it (init_on_course) once init_min_fixes "
+        "consecutive kept fixes report it [1 m/s: the course's own error, about speed error / speed, is then 3 deg]",
+    )
+    init_on_course: bool = Field(
+        True,
+        description="a vessel under way starts on its receiver's course over ground (RMC/VTG: Doppler, sim.doppler) once "
+        "init_min_fixes consecutive kept fixes report at least init_course_speed_mps, its heading as uncertain as "
+        "course_heading_sigma_deg, and refines the heading as it goes (the ekf from the receiver's velocity and the "
+        "odometry, the pf from the fixes and the odometry) [True: started in 1 s at 5 Hz; False: waits for "
+        "init_baseline_m of track to align the odometry with (Bootstrap.alignment): 6-13 s on the library's stretches, "
+        "with no estimate meanwhile]",
     )
     course_heading_sigma_deg: float = Field(
         10.0,

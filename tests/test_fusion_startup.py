@@ -28,8 +28,9 @@ STARTS = 12
 """Starts per case, spread over the ephemeris file's span (satellite geometry and the receiver's slow errors vary)."""
 
 
-def first_alignments(with_odometry: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Yaw error (deg) and claimed yaw sigma (deg) of each start's first accepted alignment."""
+def first_alignments(with_odometry: bool, on_course: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Yaw error (deg) and claimed yaw sigma (deg) of each start's first accepted alignment: the travel's (Bootstrap.alignment)
+    or, `on_course`, the receiver's course over ground (Bootstrap.under_way)."""
     p = EkfParams()
     world, boat = gw.open_water(), gw.Straight(speed=2.0)
     sky = GnssReceiver().constellation
@@ -47,7 +48,10 @@ def first_alignments(with_odometry: bool) -> tuple[np.ndarray, np.ndarray]:
             if obs is None or t < 20.0:  # a boat already under way: the receiver's own filter has settled
                 continue
             bootstrap.add(obs, odometry)
-            alignment = bootstrap.alignment(obs.stamp)
+            if on_course:
+                alignment = bootstrap.under_way(obs.stamp, p.init_course_speed_mps, np.radians(p.course_heading_sigma_deg) ** 2)
+            else:
+                alignment = bootstrap.alignment(obs.stamp)
             if alignment is not None:
                 errors.append((np.degrees(alignment.pose[2]) + 180.0) % 360.0 - 180.0)
                 sigmas.append(np.degrees(np.sqrt(alignment.cov[2, 2])))
@@ -63,6 +67,41 @@ def test_the_start_heading_lies_within_two_of_its_claimed_sigmas_in_open_water(w
     z = errors / sigmas
     assert np.all(np.abs(z) <= 2.0), f"yaw errors {errors.round(2)} deg against claimed sigmas {sigmas.round(2)} deg"
     assert np.sqrt(np.mean(z**2)) <= 1.0
+
+
+def test_a_vessel_under_way_starts_on_its_course_over_ground_within_its_fixes():
+    """The receiver's Doppler course starts a filter after init_min_fixes fixes (1 s at 5 Hz), not after a travel; in
+    open water with no leeway it is off by the velocity's own error (0.05 m/s at 2 m/s over 5 fixes: about 0.7 deg), well
+    within the leeway's 10 deg the heading claims."""
+    errors, sigmas = first_alignments(with_odometry=False, on_course=True)
+    assert len(errors) == STARTS
+    assert np.allclose(sigmas, EkfParams().course_heading_sigma_deg)
+    assert np.all(np.abs(errors) <= 3.0), f"yaw errors {errors.round(2)} deg"
+    assert np.sqrt(np.mean(errors**2)) <= 1.5
+
+
+def test_the_ekf_starts_under_way_within_its_first_fixes_or_after_its_travel():
+    """init_on_course: the ekf on a boat under way has a pose after init_min_fixes fixes (HEADING_FROM_COURSE); without it
+    it waits for init_baseline_m of track (the travel alignment)."""
+    world, boat = gw.open_water(), gw.Straight(speed=2.0)
+    started = {}
+    for on_course in (True, False):
+        est = fusion.create("ekf", init_on_course=on_course)
+        receiver = GnssReceiver(seed=3)
+        first = None
+        for t in receiver.epochs(60.0):
+            fix = receiver.fix(world, boat, t)
+            first = t if first is None and fix.quality in (1, 2) else first
+            est.add_fix(fix)
+            if est.initialized:
+                yaw = float(np.degrees(np.arctan2(est.pose[1, 0], est.pose[0, 0])))
+                started[on_course] = (t - first, est.heading_from, yaw)
+                break
+    assert abs(started[True][2]) <= 5.0
+    assert started[True][1] == HEADING_FROM_COURSE
+    assert started[True][0] <= 1.0 + 1e-9  # init_min_fixes = 5 fixes at 5 Hz
+    assert started[False][1] == HEADING_FROM_MOTION
+    assert started[False][0] >= EkfParams().init_baseline_m / 2.0 / 2.0  # at 2 m/s, at least half the baseline's travel
 
 
 class MooredThenUnderWay:

@@ -10,7 +10,7 @@ from scenarios.score.baseline import Baseline, ScenarioRuns
 from scenarios.score.expectations import Expectation
 from scenarios.spec.library import validate
 
-METRICS = {"estimators": {"ekf": {"ape": {"p95": 3.0}, "monitor": {"recall": None}}, "gps_only": {"ape": {"p95": 2.85}}}}
+METRICS = {"estimators": {"ekf": {"ape": {"p95": 3.0}, "monitor": {"added_5m": {"recall": None}}}, "gps_only": {"ape": {"p95": 2.85}}}}
 
 
 def test_a_goal_against_another_metric_takes_its_value_plus_the_offset():
@@ -32,9 +32,9 @@ def test_a_goal_naming_a_component_the_run_lacks_is_not_applicable():
 
 
 def test_a_goal_on_a_metric_with_nothing_to_measure_is_not_applicable_and_a_missing_one_fails():
-    null = Expectation.parse("estimators.ekf.monitor.recall >= 0.95").check(METRICS)
+    null = Expectation.parse("estimators.ekf.monitor.added_5m.recall >= 0.95").check(METRICS)
     assert null.as_goal()["met"] is None
-    missing = Expectation.parse("estimators.ekf.monitor.precision >= 0.95").check(METRICS)
+    missing = Expectation.parse("estimators.ekf.monitor.added_5m.precision >= 0.95").check(METRICS)
     assert missing.as_goal()["met"] is False and "no metric 'precision'" in missing.reason
 
 
@@ -43,6 +43,8 @@ def test_a_goal_on_a_metric_with_nothing_to_measure_is_not_applicable_and_a_miss
     [
         ("estimators.ekf.ape.p95 < three", "metrics start with one of"),
         ("ape < 3", "metrics start with one of"),
+        ("estimators.ekf.integrity.misleadnig <= 0.001", "is no metric a run writes"),
+        ("estimators.ekf.protection.hpl.p95 < 10", "is no metric a run writes"),
     ],
 )
 def test_a_goal_naming_an_unknown_component_or_metric_family_is_refused_naming_it(goal, why):
@@ -69,10 +71,10 @@ def test_the_results_table_shows_each_seed_met_or_not():
     runs = ScenarioRuns(
         seeds=[0, 1],
         hashes=["a", "b"],
-        metrics={"estimators.ekf.ape.p95": [1.0, 4.0], "estimators.gps_only.ape.p95": [2.0, 2.0], "estimators.ekf.monitor.recall": [None, None]},
+        metrics={"estimators.ekf.ape.p95": [1.0, 4.0], "estimators.gps_only.ape.p95": [2.0, 2.0], "estimators.ekf.monitor.added_5m.recall": [None, None]},
     )
     base = Baseline(scenarios={"s": runs}, fast=True, overrides=[], provenance={}, created_utc="2026-12-02T00:00:00Z")
-    table = goal_table(base, {"s": ["estimators.ekf.ape.p95 <= estimators.gps_only.ape.p95 + 0.1", "estimators.ekf.monitor.recall >= 0.95"]})
+    table = goal_table(base, {"s": ["estimators.ekf.ape.p95 <= estimators.gps_only.ape.p95 + 0.1", "estimators.ekf.monitor.added_5m.recall >= 0.95"]})
     assert "| 1 (bound 2.1) ✓ | 4 (bound 2.1) ✗ | **no** (1 of 2 seeds) |" in table
     assert "| – | – | n/a |" in table
     assert not math.isnan(runs.values("estimators.ekf.ape.p95", [0])[0])
@@ -82,6 +84,7 @@ def test_the_results_table_shows_each_seed_met_or_not():
     ("text", "why"),
     [
         ('goals = ["estimators.ekf.ape.p95 < three"]\n', "metrics start with one of"),
+        ('goals = ["estimators.ekf.integrity.misleadnig <= 0.001"]\n', "is no metric a run writes"),
         ('[[estimators]]\nid = "ekf"\nkind = "ekf"\nmonitor = "combined_cn0"\nmonitor_params = {gate = 3}\n', "gate"),
         ('[[estimators]]\nid = "ekf"\nkind = "ekf"\nparams = {integrity_risk = 0}\n', "integrity_risk"),
     ],

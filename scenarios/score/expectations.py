@@ -8,6 +8,8 @@ import operator
 import re
 from dataclasses import dataclass
 
+from scenarios.score import units
+
 OPERATORS = {"<=": operator.le, ">=": operator.ge, "==": operator.eq, "!=": operator.ne, "<": operator.lt, ">": operator.gt}
 _SYNTAX = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.\-]*)\s*(<=|>=|==|!=|<|>)\s*(\S+)\s*$")
 _AGAINST = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_.\-]*)\s*(<=|>=|==|!=|<|>)\s*([A-Za-z_][A-Za-z0-9_.\-]*)\s*(?:([+-])\s*(\S+))?\s*$")
@@ -91,10 +93,14 @@ def _is_number(text: str) -> bool:
 
 
 def _check_path(text: str, path: str, ids: dict[str, set[str]] | None) -> None:
-    """A metric path starts with a top-level family and, with `ids`, names an estimator or matcher that exists."""
+    """A metric path starts with a top-level family, is one metrics.json can hold a number at (every number there has a
+    unit pattern, scenarios.score.units), and, with `ids`, names an estimator or matcher that exists. A goal keeps its
+    ids unchecked (a variant may drop what it names), but a metric no run writes is a typo, never a goal to miss."""
     head = path.split(".")
     if head[0] not in TOP_LEVEL:
         raise ValueError(f"expectation {text!r}: metrics start with one of {', '.join(TOP_LEVEL)}")
+    if units.quantity_of(path) is None:
+        raise ValueError(f"expectation {text!r}: {path!r} is no metric a run writes (metrics.json's `units` block lists their patterns)")
     if ids is not None and head[0] in ids:
         if len(head) < 3:
             raise ValueError(f"expectation {text!r}: name a metric of {head[0]}.<id>, e.g. {head[0]}.<id>.ape.p95")

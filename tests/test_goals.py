@@ -71,7 +71,11 @@ def test_the_results_table_shows_each_seed_met_or_not():
     runs = ScenarioRuns(
         seeds=[0, 1],
         hashes=["a", "b"],
-        metrics={"estimators.ekf.ape.p95": [1.0, 4.0], "estimators.gps_only.ape.p95": [2.0, 2.0], "estimators.ekf.monitor.added_5m.recall": [None, None]},
+        metrics={
+            "estimators.ekf.ape.p95": [1.0, 4.0],
+            "estimators.gps_only.ape.p95": [2.0, 2.0],
+            "estimators.ekf.monitor.added_5m.recall": [None, None],
+        },
     )
     base = Baseline(scenarios={"s": runs}, fast=True, overrides=[], provenance={}, created_utc="2026-12-02T00:00:00Z")
     table = goal_table(base, {"s": ["estimators.ekf.ape.p95 <= estimators.gps_only.ape.p95 + 0.1", "estimators.ekf.monitor.added_5m.recall >= 0.95"]})

@@ -33,8 +33,13 @@ def along(vectors: np.ndarray, yaw: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module", params=[0, 1])
 def open_water(request) -> dict:
-    """open_river's first 60 s at a seed: per scan the truth and each estimate, per measured fix its error and stamp."""
-    scenario = scenarios.load("open_river", seed=request.param, set=["stretch={start_s = 0.0, end_s = 60.0}"])
+    """open_river's first 60 s at a seed: per scan the truth and each estimate, per measured fix its error and stamp. The
+    ekf starts on its travel (init_on_course off): started on the course 6 s earlier, at seed 0 it sits 0.13 m behind its
+    fixes along the track over this window while itself 0.006 m from the truth, its receiver-bias state anchored
+    elsewhere (the fixes' error drifts +0.12 m meanwhile); that is the bias model, not a lag, and the lag is what these
+    tests measure."""
+    travel_start = "estimators.ekf.params.init_on_course=false"
+    scenario = scenarios.load("open_river", seed=request.param, set=["stretch={start_s = 0.0, end_s = 60.0}", travel_start])
     run = assemble(scenario)
     trajectory = run.vessel_run.trajectory
     built = {e.id: e.build(scenario.seed) for e in scenario.estimators if e.id in ("ekf", "gps_only")}

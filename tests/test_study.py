@@ -353,6 +353,22 @@ def test_the_cause_of_finding_a_names_the_deck_a_fix_held_under():
     assert cause("d", "bench", "unmeasured", {}) == "not enough data on this stretch to name the cause."
 
 
+def test_the_cause_of_finding_b_counts_the_outages_that_end_on_reflected_signals():
+    from scenarios.study.causes import cause
+
+    def outage(reflected: int, first_max_m: float, sats: int) -> dict:
+        coast = {"settle_s": 0.2, "coasted_s": 3.0, "coast_end_error_m": 1.5}
+        return {**coast, "first_sats": sats, "first_max_m": first_max_m, "first_reflected": reflected}
+
+    m = {"outages": [outage(3, 15.7, 4), outage(0, 0.9, 5), outage(0, 0.5, 6)], "open_water_p95_m": 0.8, "first_fixes": 10}
+    bench, field = cause("b", "bench", "partly", m), cause("b", "field", "disagrees", m)
+    assert "after 1 of 3 outages some of the first 10 fixes use a satellite received only by its reflection" in bench
+    assert "off by up to 15.7 m" in bench and "after 2 they use direct signals alone, on 5-6 satellites (off by up to 0.5-0.9 m)" in bench
+    assert "tracking GPS alone" in field and "tracking GPS alone" not in bench
+    older = {**m, "outages": [{k: v for k, v in r.items() if k != "first_reflected"} for r in m["outages"]]}
+    assert cause("b", "bench", "partly", older).endswith("What the first fixes are made of: not recorded.")
+
+
 def test_command_components_are_scored_in_the_findings_they_apply_to(tiny):
     """kiss_icp_pipeline (a command matcher) in e, f and h; an exact command estimator in b and d; none in a, c, g; each
     with its own verdict under each setup, the built-ins' findings as without them."""

@@ -85,7 +85,29 @@ def cause_b(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:
             "this short, and how a 2016 receiver weighted its first fix after one is not documented"
         )
     parts = [p for p, rows_ in ((lingering, slow), (quick, fast)) if rows_]
-    return f"The wrong estimate: {coast}; " + "; ".join(parts) + "."
+    return f"The wrong estimate: {coast}; " + "; ".join(parts) + f". What the first fixes are made of: {_first_fixes(setup, rows, m)}."
+
+
+def _first_fixes(setup: str, rows: list[dict], m: dict) -> str:
+    """b: how many outages end on fixes that use a satellite received only by its reflection (a deck's edge, a quay),
+    against those that end on direct signals alone, and why a receiver tracking GPS alone meets fewer of them."""
+    if any("first_reflected" not in r for r in rows):
+        return "not recorded"
+    reflected = [r for r in rows if r["first_reflected"] > 0]
+    direct = [r for r in rows if r["first_reflected"] == 0]
+    n = m.get("first_fixes", 10)
+    text = (
+        f"after {len(reflected)} of {len(rows)} outages some of the first {n} fixes use a satellite received only by its "
+        f"reflection (the truth's NLOS flag; off by up to {_range([r['first_max_m'] for r in reflected])} m), after "
+        f"{len(direct)} they use direct signals alone, on {_range([r['first_sats'] for r in direct], '.0f')} satellites "
+        f"(off by up to {_range([r['first_max_m'] for r in direct])} m)"
+    )
+    if SETUPS[setup].receiver.get("profile") == "sbas_gps":
+        text += (
+            "; tracking GPS alone, fewer satellites reach the antenna at a deck's edge, by reflection too, so the fix "
+            "mostly comes back when enough are in direct sight"
+        )
+    return text
 
 
 def cause_c(setup: str, verdict: str, m: dict, tilt: dict | None = None) -> str:

@@ -119,8 +119,10 @@ def open_water_error(g: GnssSample, mask: np.ndarray) -> dict:
 def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_fixes: int) -> dict:
     """Finding b: for each blackout of at least OUTAGE_MIN_S, the mean and max error of the first `n_fixes` measured
     fixes after it, and how long after it the error first came back within open water's p95 (`settle_s`, NaN: not
-    before the next outage or the stretch's end), the satellites the first fix used, how long the receiver
-    dead-reckoned in the outage and the error it had reached when it stopped; the run's re-acquisition windows beside."""
+    before the next outage or the stretch's end), the satellites the first fix used, how many of those fixes used a
+    satellite received only by its reflection (the truth's NLOS flag: what a wrong fix at a deck's edge is made of), how
+    long the receiver dead-reckoned in the outage and the error it had reached when it stopped; the run's
+    re-acquisition windows beside."""
     f = g.fixes
     err = f.horizontal_error
     blackouts = [w for w in windows if w.kind == "blackout"]
@@ -143,6 +145,7 @@ def after_outages(g: GnssSample, windows: list[win.Window], open_p95: float, n_f
                 "first_max_m": float(first.max()),
                 "settle_s": float(f.t[back[0]] - w.end) if len(back) else math.nan,
                 "first_sats": int(f.num_sats[after[0]]),
+                "first_reflected": int(f.nlos_used[after[:n_fixes]].sum()),
                 "coasted_s": float(len(coasted) * g.period_s),
                 "coast_end_error_m": float(err[coasted[-1]]) if len(coasted) else math.nan,
             }

@@ -27,17 +27,30 @@ RECEIVERS: dict[str, dict | None] = {
 }
 """The receiver classes: the library's, the field setup's, and the era's other common class (GLONASS has been fully
 operational since 2011; receivers tracking GPS and GLONASS, such as the u-blox M8 of 2014, were common by 2016)."""
+
+
+def seeds(text: str) -> list[int]:
+    """--seeds: comma-separated non-negative integers (argparse names a bad value in one line, exit 2)."""
+    try:
+        values = [int(s) for s in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give comma-separated seeds, e.g. 0,1,2") from None
+    if any(v < 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: seeds are non-negative")
+    return values
+
+
 CHECKS = {"a": verdicts.checks_a, "b": verdicts.checks_b, "c": verdicts.checks_c, "d": verdicts.checks_d}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="0,1,2", help="comma-separated seeds (default 0,1,2)")
+    ap.add_argument("--seeds", type=seeds, default=[0, 1, 2], help="comma-separated seeds (default 0,1,2)")
     args = ap.parse_args()
     findings = by_key()
     print("| receiver | seed | a | b | c | d | b: wrong after | b: back within p95 (median) | b: ending on reflections | a: lost under each deck |")
     print("|:---|---:|:---|:---|:---|:---|---:|---:|---:|:---|")
-    for seed in (int(s) for s in args.seeds.split(",")):
+    for seed in args.seeds:
         for name, receiver in RECEIVERS.items():
             scenario = study_scenario(seed=seed, receiver=receiver)
             structures = assemble(scenario).world.params.get("structures", [])

@@ -6,6 +6,8 @@ point-to-plane ICP with Tukey's robust kernel (Open3D's generalized ICP as an op
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Literal
 
 import numpy as np
@@ -22,6 +24,20 @@ from matcher.pointplane import point_to_plane_fit
 from matcher.result import MatchResult
 
 reg = o3d.pipelines.registration
+
+
+@contextmanager
+def one_thread() -> Iterator[None]:
+    """Open3D on one thread inside the block, its thread count restored after: its RANSAC draws every thread's samples
+    from one seeded generator, so with two threads or more the order of the draws, and with the correspondence checkers
+    on the answer, follows the OS scheduler; only one thread makes a seeded run repeatable (isl-org/Open3D#7475, a
+    maintainer's reply). PCL's SampleConsensusPrerejective, which Method 1 stands for, is a serial loop."""
+    threads = o3d.utility.get_max_threads()
+    o3d.utility.set_max_threads(1)
+    try:
+        yield
+    finally:
+        o3d.utility.set_max_threads(threads)
 
 
 class Pcl6dParams(MatcherParams, DegeneracyParams, FloorParams):
@@ -58,7 +74,9 @@ class Pcl6dParams(MatcherParams, DegeneracyParams, FloorParams):
         "'max_iterations' after exactly ransac_max_iterations hypotheses, as PCL's SampleConsensusPrerejective does (its "
         "computeTransformation loop has no early exit: registration/impl/sample_consensus_prerejective.hpp)",
     )
-    ransac_seed: int = Field(0, ge=0, description="seed of Open3D's RANSAC sampler, set before each pre-alignment for repeatable runs (default 0)")
+    ransac_seed: int = Field(
+        0, ge=0, description="seed of Open3D's RANSAC sampler, set before each pre-alignment (on one thread: repeatable runs; default 0)"
+    )
     planar_initial_guess: bool = Field(True, description="keep only x, y, yaw of the pre-alignment as ICP's start (boats stay level; default on)")
     skip_prealign_max_dt_s: float = Field(
         0.25,
@@ -140,17 +158,22 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
             )
             res = reg.evaluate_registration(src_pcd, tgt_pcd, p.ransac_distance_m, res.transformation)
         else:
-            o3d.utility.random.seed(p.ransac_seed)
-            res = reg.registration_ransac_based_on_correspondence(
-                src_pcd,
-                tgt_pcd,
-                corres,
-                p.ransac_distance_m,
-                reg.TransformationEstimationPointToPoint(False),
-                3,
-                [reg.CorrespondenceCheckerBasedOnEdgeLength(p.edge_length_similarity), reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m)],
-                reg.RANSACConvergenceCriteria(p.ransac_max_iterations, 1.0 if p.ransac_until == "max_iterations" else p.ransac_confidence),
-            )
+            checkers = [
+                reg.CorrespondenceCheckerBasedOnEdgeLength(p.edge_length_similarity),
+                reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m),
+            ]
+            with one_thread():
+                o3d.utility.random.seed(p.ransac_seed)
+                res = reg.registration_ransac_based_on_correspondence(
+                    src_pcd,
+                    tgt_pcd,
+                    corres,
+                    p.ransac_distance_m,
+                    reg.TransformationEstimationPointToPoint(False),
+                    3,
+                    checkers,
+                    reg.RANSACConvergenceCriteria(p.ransac_max_iterations, 1.0 if p.ransac_until == "max_iterations" else p.ransac_confidence),
+                )
         T = np.asarray(res.transformation)
         # feature correspondences the final transform rejects (the field study's outlier share)
         src_xyz, tgt_xyz = np.asarray(src_pcd.points)[pairs[:, 0]], np.asarray(tgt_pcd.points)[pairs[:, 1]]

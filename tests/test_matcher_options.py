@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import open3d as o3d
 import pytest
 
 import matcher
@@ -56,10 +57,31 @@ def test_pcl6d_pre_alignment_recovers_a_turn(params, turned_pair):
     assert 0.0 < r.info["prealign_rejected_share"] < 0.9 and r.info["prealign_putative"] > 10  # FPFH always mismatches some
     if "skip_icp_min_fitness" in params:
         assert r.info["icp_skipped"]
-        _check(r, truth, 1.0, 2.0)  # FPFH + RANSAC on 1 m voxels alone is coarse (and Open3D's threads vary it)
+        _check(r, truth, 1.0, 2.0)  # FPFH + RANSAC on 1 m voxels alone is coarse
     else:
         _check(r, truth, 0.05)
         assert r.info["outlier_share"] < 0.1
+
+
+def test_pcl6d_pre_alignment_is_repeatable_on_a_multithreaded_open3d(turned_pair):
+    """Open3D's RANSAC with correspondence checkers is not repeatable on several threads (isl-org/Open3D#7475): pcl6d
+    runs it on one thread, so the same pair gives the same bytes, and gives Open3D its thread count back."""
+    a, b, _ = turned_pair
+    threads = o3d.utility.get_max_threads()
+    o3d.utility.set_max_threads(2)
+    try:
+        answers = set()
+        for _ in range(3):
+            coarse = dict(skip_icp_min_fitness=0.5, skip_icp_max_rmse_m=1.0, max_outlier_share=1.0)  # RANSAC's answer, as is
+            m = matcher.create("pcl6d", skip_prealign_max_dt_s=0.0, **coarse, **FAST_TURNS)
+            m.register(a)
+            r = m.register(b)
+            assert r.ok and r.info["icp_skipped"]
+            answers.add((r.T.tobytes(), r.info["prealign_fitness"], r.info["prealign_rejected_share"]))
+        assert len(answers) == 1
+        assert o3d.utility.get_max_threads() == 2
+    finally:
+        o3d.utility.set_max_threads(threads)
 
 
 @pytest.mark.parametrize("method", ["fourier_mellin", "yaw_search"])

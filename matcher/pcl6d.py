@@ -198,12 +198,18 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
             res = reg.registration_icp(src.pcd, tgt.pcd, p.icp_max_correspondence_m, init, est, criteria)
         return np.asarray(res.transformation)
 
-    def _align(self, src: _Prepared, tgt: _Prepared, prior: np.ndarray | None, dt: float) -> tuple[np.ndarray, dict]:
+    def _align(self, src: _Prepared, tgt: _Prepared, prior: np.ndarray | None, dt: float, first_round: dict | None = None) -> tuple[np.ndarray, dict]:
         """ICP from the motion prior when scans are close in time (identity without a prior: a boat
-        moves little in a revolution); global pre-alignment first when they are not, or when that fails."""
+        moves little in a revolution); global pre-alignment first when they are not, or when that fails.
+        A later de-skew round (first_round: the first round's diagnostics, which it reports on) starts from the previous
+        round's answer as a prior: de-skewed again, the scan moves by centimetres, so a second global search would only
+        repeat the first (the field study's Method 1 pre-aligns each pair once); a first round that kept the
+        pre-alignment's answer without ICP (skip_icp_min_fitness) keeps it."""
         p = self.p
-        info: dict = {"prealigned": False, "icp_skipped": False}
-        if dt <= p.skip_prealign_max_dt_s or p.prealign == "none":
+        if first_round is not None and first_round["icp_skipped"]:
+            return prior if prior is not None else np.eye(4), dict(first_round)
+        info: dict = {"prealigned": False, "icp_skipped": False} if first_round is None else {**first_round, "icp_skipped": False}
+        if first_round is not None or dt <= p.skip_prealign_max_dt_s or p.prealign == "none":
             T = self._icp(src, tgt, np.eye(4) if prior is None else prior)
             fit = point_to_plane_fit(src.points, T, tgt.points, tgt.normals, tgt.tree, p.icp_max_correspondence_m, p.tukey_k_m)
             if fit.fitness >= p.min_fitness or p.prealign == "none":
@@ -221,10 +227,15 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
         p = self.p
         twist = self.velocity.twist_per_s
 
+        first_round: dict | None = None
+
         def align(cur: _Prepared, ref: _Prepared, T: np.ndarray | None) -> tuple[np.ndarray, dict] | None:
+            nonlocal first_round
             if len(cur.points) < 10 or len(ref.points) < 10:
                 return None
-            return self._align(cur, ref, T, dt)
+            aligned = self._align(cur, ref, T, dt, first_round)
+            first_round = aligned[1] if first_round is None else first_round
+            return aligned
 
         ref, cur, aligned = deskew_rounds(
             cloud,

@@ -63,6 +63,26 @@ def test_pcl6d_pre_alignment_recovers_a_turn(params, turned_pair):
         assert r.info["outlier_share"] < 0.1
 
 
+def test_pcl6d_pre_aligns_each_pair_once_over_its_de_skew_rounds(turned_pair, monkeypatch):
+    """The second de-skew round refines the first round's answer by ICP; a second global search would repeat the first."""
+    a, b, truth = turned_pair
+    m = matcher.create("pcl6d", skip_prealign_max_dt_s=0.0, deskew_iterations=2, **FAST_TURNS)
+    calls = {"_prealign": 0, "_icp": 0}
+    for name in calls:
+        original = getattr(m, name)
+
+        def counted(*args, _original=original, _name=name):
+            calls[_name] += 1
+            return _original(*args)
+
+        monkeypatch.setattr(m, name, counted)
+    m.register(a)
+    r = m.register(b)
+    assert calls == {"_prealign": 1, "_icp": 2}  # round 1: RANSAC then ICP; round 2: ICP from round 1's answer
+    assert r.info["prealigned"] and r.info["prealign_putative"] > 10  # the diagnostics are the pre-alignment's
+    _check(r, truth, 0.05)
+
+
 def test_pcl6d_pre_alignment_is_repeatable_on_a_multithreaded_open3d(turned_pair):
     """Open3D's RANSAC with correspondence checkers is not repeatable on several threads (isl-org/Open3D#7475): pcl6d
     runs it on one thread, so the same pair gives the same bytes, and gives Open3D its thread count back."""

@@ -16,11 +16,11 @@ import pytest
 from typer.testing import CliRunner
 
 from scenarios.cli import app
+from scenarios.study import plots, verdicts
 from scenarios.study import study as study_module
-from scenarios.study import verdicts
 from scenarios.study.findings import FINDINGS, by_key
 from scenarios.study.matcher_findings import compose, success_curve
-from scenarios.study.plan import StudyPlan, burst_starts, chain_pieces, parse_stretch, study_scenario
+from scenarios.study.plan import MATCHERS, StudyPlan, burst_starts, chain_pieces, parse_stretch, study_scenario
 from scenarios.study.setups import SETUPS
 from scenarios.study.verdicts import Check, verdict
 
@@ -106,6 +106,16 @@ def test_study_json_has_every_finding_with_checks_and_a_verdict(tiny):
     field = tree["findings"]["e"]["setups"]["field"]["measured"]
     assert set(field) == {"pcl6d", "bev3dof", "kiss_icp", "gicp"}  # the field's Method 1 reported as pcl6d
     assert "pcl6d_field" not in json.dumps(tree["findings"]["f"]) and "pcl6d_field" not in (tiny[0] / "report.md").read_text()
+
+
+def test_the_matcher_figures_show_the_field_setups_method1_beside_the_benchs(tiny):
+    _, tree = tiny
+    field = tree["findings"]["f"]["setups"]["field"]["measured"]
+    assert plots.beside(tree, "f")["matchers"]["pcl6d (field)"] == field["matchers"]["pcl6d"]
+    assert plots.beside(tree, "g")["pcl6d (field)"] == tree["findings"]["g"]["setups"]["field"]["measured"]["pcl6d"]
+    assert plots.beside(tree, "g")["pcl6d"] == tree["findings"]["g"]["measured"]["pcl6d"]  # the bench's own, as it was
+    rows = [{"matcher": m} for m in ("pcl6d", "gicp", "pcl6d (field)")]
+    assert plots.plotted(rows) == [*MATCHERS, "pcl6d (field)"] and plots.plotted(rows[:2]) == list(MATCHERS)
 
 
 def test_the_verdict_rules_on_hand_made_numbers():

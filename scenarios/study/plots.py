@@ -13,12 +13,18 @@ from scenarios.score import windows as win
 from scenarios.study.gnss_findings import open_water, shadowed
 from scenarios.study.matcher_findings import columns
 from scenarios.study.plan import MATCHERS
+from scenarios.study.setups import SETUP_NAMES, setup_method1
 
 FILE_MODE = 0o644
 DPI = 100
-COLOURS = {"pcl6d": "#1f77b4", "bev3dof": "#d62728", "kiss_icp": "#2ca02c", "gicp": "#9467bd"}
-OTHER_COLOURS = ("#ff7f0e", "#8c564b", "#e377c2", "#17becf")
+COLOURS = {"pcl6d": "#1f77b4", "bev3dof": "#d62728", "kiss_icp": "#2ca02c", "gicp": "#9467bd"} | {
+    setup_method1(name): "#17becf" for name in SETUP_NAMES
+}
+"""Colours of the built-in matchers' marks, and of another setup's Method 1 beside the first setup's pcl6d."""
+OTHER_COLOURS = ("#ff7f0e", "#8c564b", "#e377c2", "#bcbd22")
 """Colours of the command matchers' curves (the built-ins have theirs)."""
+BESIDE = " With both setups, pcl6d (field) is the field setup's Method 1 (pre-aligned on every pair) beside the bench's."
+"""What the matcher figures show beside the first setup's matchers."""
 CAPTIONS = {
     "a": "Seconds without a measured fix (the run's blackout windows), at quality 0, and with fewer than 4 satellites in "
     "direct line of sight (the truth) around each structure, beside the time spent under its deck.",
@@ -26,11 +32,11 @@ CAPTIONS = {
     "c": "HDOP against the true horizontal error of each measured fix (orange: in an NLOS window); right: the ROC of HDOP as a "
     "detector of fixes off by more than 5 m, in the NLOS windows and over every measured fix.",
     "d": "Cumulative distribution of the open-water fixes' horizontal error (no facade reflection reaching the antenna); dashed: the study's 1 m.",
-    "e": "Wall time of each registration against the points in the scan, per matcher; dashed: 1, 8 and 10 Hz.",
+    "e": "Wall time of each registration against the points in the scan, per matcher; dashed: 1, 8 and 10 Hz." + BESIDE,
     "f": "Success rate per 1,000-point bin of points per scan, per matcher (bars: registrations per bin, right axis); "
     "shaded: the study's 6,000-27,000 band. A command matcher's (dashed): its steps over every revolution of the stretch, its "
-    "own claim (a pose), and dotted the share of them within 5 cm and 0.5 deg of the true motion.",
-    "g": "Share of points (or correspondences) each matcher rejected as outliers, per registration; dashed: the study's 10 %.",
+    "own claim (a pose), and dotted the share of them within 5 cm and 0.5 deg of the true motion." + BESIDE,
+    "g": "Share of points (or correspondences) each matcher rejected as outliers, per registration; dashed: the study's 10 %." + BESIDE,
     "h": "Yaw of the chained matcher odometry minus the truth along the stretch, beside the magnetic compass's heading error "
     "(dashed: a command matcher's odometry, every revolution, laid onto the truth at its first pose).",
 }
@@ -116,11 +122,31 @@ def open_water_figure(gnss, mask: np.ndarray) -> Figure | None:
     return fig
 
 
+def plotted(rows: list[dict]) -> list[str]:
+    """The matchers the figures show: the built-ins, then another setup's Method 1 where its rows are there."""
+    present = {row["matcher"] for row in rows}
+    return [*MATCHERS, *(mid for mid in COLOURS if mid not in MATCHERS and mid in present)]
+
+
+def beside(tree: dict, key: str) -> dict:
+    """Finding `key`'s measured node of the first setup with each other setup's Method 1 (its pcl6d) added as
+    'pcl6d (<setup>)' under its 'matchers' (finding f) or at the top (finding g)."""
+    setups = list(tree.get("setups", {}))
+    node = dict(tree["findings"][key]["measured"])
+    for other in setups[1:]:
+        theirs = tree["findings"][key]["setups"][other]["measured"]
+        if key == "f":
+            node["matchers"] = {**node["matchers"], setup_method1(other): theirs["matchers"]["pcl6d"]}
+        else:
+            node[setup_method1(other)] = theirs["pcl6d"]
+    return node
+
+
 def rates_figure(rows: list[dict]) -> Figure | None:
     if not rows:
         return None
     fig, (ax,) = _figure()
-    for mid in MATCHERS:
+    for mid in plotted(rows):
         c = columns(rows, mid)
         reg = c["gated"] == 0
         ax.scatter(c["points"][reg], 1e3 * c["seconds"][reg], s=4, c=COLOURS.get(mid), label=mid)
@@ -221,8 +247,8 @@ def write_all(plots_dir: Path, tree: dict, samples) -> dict[str, str]:
         "c": hdop_figure(samples.gnss),
         "d": open_water_figure(samples.gnss, mask),
         "e": rates_figure(samples.rows),
-        "f": success_figure(with_commands(m["f"], commands(tree, "f"))),
-        "g": outliers_figure(samples.rows, m["g"]),
+        "f": success_figure(with_commands(beside(tree, "f"), commands(tree, "f"))),
+        "g": outliers_figure(samples.rows, beside(tree, "g")),
         "h": yaw_figure(m["h"], commands(tree, "h")),
     }
     plots_dir.mkdir(parents=True, exist_ok=True)

@@ -56,6 +56,11 @@ SETUPS: dict[str, Setup] = {
 """The setups by name."""
 
 
+def setup_method1(setup: str) -> str:
+    """How the figures name a setup's Method 1 beside the first setup's pcl6d: 'pcl6d (field)'."""
+    return f"pcl6d ({setup})"
+
+
 def parse_setup(text: str) -> tuple[str, ...]:
     """The setups `--setup TEXT` runs (ValueError naming the value and the choices)."""
     if text not in CHOICES:

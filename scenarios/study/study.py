@@ -31,7 +31,7 @@ from scenarios.study import causes, components, gnss_findings, matcher_findings,
 from scenarios.study.components import Component
 from scenarios.study.findings import CITATION, FINDINGS
 from scenarios.study.plan import MATCHERS, SCENARIO, StudyPlan, burst_starts, chain_pieces, component_scenario, study_scenario
-from scenarios.study.setups import FIELD_METHOD1_ID, SETUP_NAMES, SETUPS
+from scenarios.study.setups import FIELD_METHOD1_ID, SETUP_NAMES, SETUPS, setup_method1
 from scenarios.study.tasks import GnssSample, Timed, run_task
 from scenarios.study.verdicts import BY_MATCHER, RULES, headline, verdict
 
@@ -219,7 +219,7 @@ def _measure_into(
         }
     tree["run"] = {"measure_wall_s": time.perf_counter() - wall_start, "round1_wall_s": round1_wall_s, "workers": plan.workers, "jobs": costs}
     tree = json_safe(tree)
-    report.write(tmp, tree, Samples(gnss[setups[0]], _as_method1(rows, setups[0]), structures))
+    report.write(tmp, tree, Samples(gnss[setups[0]], _plotted_rows(rows, setups), structures))
     (tmp / "study.json").write_text(json.dumps(tree, indent=2) + "\n")
     return tree
 
@@ -281,6 +281,15 @@ def _as_method1(rows: list[dict], setup: str) -> list[dict]:
                 continue
             row = {**row, "matcher": "pcl6d"}
         out.append(row)
+    return out
+
+
+def _plotted_rows(rows: list[dict], setups: list[str]) -> list[dict]:
+    """The burst rows the figures show: the first setup's (its Method 1 named pcl6d) and each other setup's Method 1
+    beside them, named 'pcl6d (<setup>)' (setups.setup_method1)."""
+    out = _as_method1(rows, setups[0])
+    for other in setups[1:]:
+        out += [{**row, "matcher": setup_method1(other)} for row in _as_method1(rows, other) if row["matcher"] == "pcl6d"]
     return out
 
 

@@ -22,16 +22,20 @@ from matcher.deskew import deskew_rounds
 from matcher.motion import deskew, planar, transform
 from matcher.pointplane import point_to_plane_fit
 from matcher.result import MatchResult
+from sim.scan import Scan
 
 reg = o3d.pipelines.registration
 
 
 @contextmanager
 def one_thread() -> Iterator[None]:
-    """Open3D on one thread inside the block, its thread count restored after: its RANSAC draws every thread's samples
-    from one seeded generator, so with two threads or more the order of the draws, and with the correspondence checkers
-    on the answer, follows the OS scheduler; only one thread makes a seeded run repeatable (isl-org/Open3D#7475, a
-    maintainer's reply). PCL's SampleConsensusPrerejective, which Method 1 stands for, is a serial loop."""
+    """Open3D on one thread inside the block, its thread count restored after. On two threads or more a registration is
+    not repeatable: Open3D's RANSAC draws every thread's samples from one seeded generator, so the order of the draws,
+    and with the correspondence checkers the answer, follows the OS scheduler (isl-org/Open3D#7475, a maintainer's
+    reply: only one thread makes it repeatable), and its ICP sums each thread's share of the normal equations in the
+    order the threads finish, so the last bits of every step differ (measured: 15 repeats of one six-scan sequence on
+    two threads gave 15 different answers). PCL's SampleConsensusPrerejective and ICP, which Method 1 stands for, are
+    serial loops."""
     threads = o3d.utility.get_max_threads()
     o3d.utility.set_max_threads(1)
     try:
@@ -136,6 +140,10 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
         super().__init__(params)
         self.p = params
 
+    def _register(self, scan: Scan) -> MatchResult:
+        with one_thread():  # repeatable: every Open3D step of a registration on one thread (one_thread)
+            return super()._register(scan)
+
     def _prepare(self, cloud: Cloud, twist: np.ndarray | None) -> _Prepared:
         return _Prepared(cloud, twist, self.p)
 
@@ -162,18 +170,17 @@ class Pcl6d(DeskewingMatcher[_Prepared]):
                 reg.CorrespondenceCheckerBasedOnEdgeLength(p.edge_length_similarity),
                 reg.CorrespondenceCheckerBasedOnDistance(p.ransac_distance_m),
             ]
-            with one_thread():
-                o3d.utility.random.seed(p.ransac_seed)
-                res = reg.registration_ransac_based_on_correspondence(
-                    src_pcd,
-                    tgt_pcd,
-                    corres,
-                    p.ransac_distance_m,
-                    reg.TransformationEstimationPointToPoint(False),
-                    3,
-                    checkers,
-                    reg.RANSACConvergenceCriteria(p.ransac_max_iterations, 1.0 if p.ransac_until == "max_iterations" else p.ransac_confidence),
-                )
+            o3d.utility.random.seed(p.ransac_seed)
+            res = reg.registration_ransac_based_on_correspondence(
+                src_pcd,
+                tgt_pcd,
+                corres,
+                p.ransac_distance_m,
+                reg.TransformationEstimationPointToPoint(False),
+                3,
+                checkers,
+                reg.RANSACConvergenceCriteria(p.ransac_max_iterations, 1.0 if p.ransac_until == "max_iterations" else p.ransac_confidence),
+            )
         T = np.asarray(res.transformation)
         # feature correspondences the final transform rejects (the field study's outlier share)
         src_xyz, tgt_xyz = np.asarray(src_pcd.points)[pairs[:, 0]], np.asarray(tgt_pcd.points)[pairs[:, 1]]

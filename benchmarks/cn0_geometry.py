@@ -39,6 +39,7 @@ def stream(name: str, seed: int, fault_m: float, bias_m: list[float]) -> dict[st
     run = assemble(scenario)
     judges = {"unweighed (nlos_bias_m 0)": monitors.create("cn0", nlos_bias_m=0.0, fault_m=fault_m)}
     judges |= {f"nlos_bias_m {b:g}": monitors.create("cn0", nlos_bias_m=b, fault_m=fault_m) for b in bias_m}
+    judges |= {f"nlos_bias_m {b:g} cos(el)": monitors.create("cn0", nlos_bias_m=b, fault_m=fault_m, vertical_reflectors=True) for b in bias_m}
     counts = {rule: [0, 0, 0, 0] for rule in judges}
     for t in run.receiver.epochs(run.t_end, run.t_start):
         fix = run.receiver.fix(run.vessel_run.world, run.trajectory, float(t))

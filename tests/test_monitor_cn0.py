@@ -157,13 +157,14 @@ def test_an_nlos_fix_is_held_for_hold_s_as_the_receiver_filter_still_carries_it(
 
 def _ten_metre_suspect(**params):
     """A cn0 monitor (hold_s 6 s, `params`) warmed on clean epochs, then fed a fix whose 35 deg satellite is reflected and
-    could move it by 10 m (nlos_bias_m x its slope): (the monitor, the elevations, the rng, the verdict on that fix)."""
+    could move it by 10 m (nlos_bias_m x cos(35 deg) x its slope): (the monitor, the elevations, the rng, the verdict on
+    that fix)."""
     from fusion.monitors.satellite_geometry import horizontal_slopes
 
     el = np.array([15.0, 35.0, 50.0, 65.0, 80.0])
     az = (np.arange(len(el)) * 137.5) % 360.0  # make_fix's azimuths
     slope = horizontal_slopes(el, az, ["GPS"] * len(el))[1]
-    mon = monitors.create("cn0", hold_s=6.0, nlos_bias_m=10.0 / slope, **params)
+    mon = monitors.create("cn0", hold_s=6.0, nlos_bias_m=10.0 / (slope * np.cos(np.deg2rad(el[1]))), **params)
     rng = np.random.default_rng(9)
     for t, e, snr in clean_epochs(rng, 400):
         feed(mon, make_fix(t, e, snr))
@@ -184,6 +185,26 @@ def test_a_held_fault_counts_while_its_halving_effect_could_still_move_the_fix_b
         verdict = feed(mon, make_fix(100.0 + dt, el, direct_cn0(el, rng)))
         if abs(dt - carried_s) > 1e-9:  # on the boundary, float rounding decides
             assert verdict.trusted == (dt > carried_s), (dt, verdict.reason)
+
+
+@settings(max_examples=40, deadline=None)
+@given(distance_m=st.floats(0.0, 6.0), sigma_m=st.floats(0.01, 2.0))
+def test_with_certify_z_a_suspect_fix_the_prediction_bounds_below_the_fault_is_trusted_with_that_bound(distance_m, sigma_m):
+    """Analytic: a fix a 10 m suspect makes the monitor refuse is trusted when its distance from the host's predicted fix
+    plus certify_z x the prediction's largest sigma is below fault_m, with that bound as its allowance (rule
+    cn0.certified); otherwise refused as before."""
+    mon, el, rng, flagged = _ten_metre_suspect(certify_z=3.7)  # fed without a prediction: refused
+    assert not flagged.trusted and flagged.rule == "cn0.deficit"
+    snr = direct_cn0(el, rng)
+    snr[1] -= 2 * NLOS_LOSS_DB
+    obs = screen(make_fix(100.2, el, snr), 3.0, False)[0]
+    predicted = (obs.xy + np.array([distance_m, 0.0]), np.diag([sigma_m**2, (0.5 * sigma_m) ** 2]), np.eye(2))
+    verdict = mon.check(obs, dataclasses.replace(CTX, predicted=predicted))
+    bound = distance_m + 3.7 * sigma_m
+    if abs(bound - 5.0) > 1e-9:
+        assert verdict.trusted == (bound < 5.0), verdict.reason
+        assert verdict.rule == ("cn0.certified" if bound < 5.0 else "cn0.deficit")
+        assert verdict.allowance_m == (pytest.approx(bound) if bound < 5.0 else 0.0)
 
 
 def test_with_hold_allowance_a_held_fix_is_trusted_allowing_what_the_fault_could_still_move_it():
@@ -508,8 +529,9 @@ def crowned_fix(rng, t: float) -> tuple[GnssFix, int]:
 
 def test_a_direct_signal_through_a_tree_crown_does_not_refuse_the_fix():
     # C/N0 alone cannot tell a crown's attenuation from a reflection's loss (the satellite is 6.5 dB, > gate_sigma, down),
-    # but a 14 deg satellite among 17 moves the fix 0.06 m per metre of range bias: even a 50 m reflection would move it
-    # 3.2 m. Before the suspects were weighed this refused 0.87 of charles_river's [fast] fixes (all within 1.1 m)
+    # but a 14 deg satellite among 17 moves the fix 0.06 m per metre of range bias: even a reflection off a wall 25 m away
+    # (2 x 25 m x cos 14 deg = 48.5 m) would move it 3.1 m. Before the suspects were weighed this refused 0.87 of
+    # charles_river's [fast] fixes (all within 1.1 m)
     rng = np.random.default_rng(4)
     mon = monitors.create("cn0")
     for k in range(300):
@@ -519,16 +541,17 @@ def test_a_direct_signal_through_a_tree_crown_does_not_refuse_the_fix():
     deficits, sats, _, _ = mon.satellite_deficits(obs)
     assert deficits[crowned] > mon.gate and np.delete(deficits, crowned).max() < mon.gate  # the only suspect
     verdict = mon.check(obs, CTX)
-    assert verdict.trusted and verdict.statistic < mon.gate and "PRN 3 " in verdict.reason and "at most 3.2 m" in verdict.reason
+    assert verdict.trusted and verdict.statistic < mon.gate and "PRN 3 " in verdict.reason and "at most 3.1 m" in verdict.reason
     assert not monitors.create("cn0", nlos_bias_m=0, profile_template=(35.0, 15.0, 1.0)).check(obs, CTX).trusted  # unweighed: refused
 
 
 @settings(max_examples=60, deadline=None)
-@given(suspect=st.integers(0, 16), bias_m=st.floats(5.0, 200.0), seed=st.integers(0, 2**16))
-def test_a_suspect_refuses_the_fix_exactly_when_its_bias_through_the_geometry_exceeds_the_fault(suspect, bias_m, seed):
-    """Analytic: the fix is refused iff nlos_bias_m x the suspect's slope > fault_m, the slope being the horizontal shift of
+@given(suspect=st.integers(0, 16), bias_m=st.floats(5.0, 200.0), seed=st.integers(0, 2**16), vertical=st.booleans())
+def test_a_suspect_refuses_the_fix_exactly_when_its_bias_through_the_geometry_exceeds_the_fault(suspect, bias_m, seed, vertical):
+    """Analytic: the fix is refused iff the suspect's bias x its slope > fault_m, the slope being the horizontal shift of
     the elevation-weighted least-squares fix (the larger of one clock and one clock per system) computed here by perturbing
-    the solution itself."""
+    the solution itself, the bias nlos_bias_m x cos(elevation) off a vertical wall (vertical_reflectors, the default) or
+    nlos_bias_m at every elevation."""
     from fusion.monitors.satellite_geometry import horizontal_slopes
 
     rng = np.random.default_rng(seed)
@@ -554,12 +577,14 @@ def test_a_suspect_refuses_the_fix_exactly_when_its_bias_through_the_geometry_ex
     mon = monitors.create(
         "cn0",
         nlos_bias_m=bias_m,
+        vertical_reflectors=vertical,
         profile_template=(35.0, 15.0, 1.0),
         offsets_db={"GPS L1 C/A": 0.0, "GLONASS L1OF": -3.0, "Galileo E1-BC": 2.0, "BeiDou B1I": -4.5},
     )
     verdict = mon.check(screen(dataclasses.replace(fix, sats=sats), 3.0, False)[0], CTX)
-    if abs(bias_m * slope - 5.0) > 1e-6:
-        assert verdict.trusted == (bias_m * slope <= 5.0), (bias_m * slope, verdict.reason)
+    shift = bias_m * (np.cos(np.deg2rad(el[suspect])) if vertical else 1.0) * slope
+    if abs(shift - 5.0) > 1e-6:
+        assert verdict.trusted == (shift <= 5.0), (shift, verdict.reason)
 
 
 @settings(max_examples=200, deadline=None)

@@ -103,7 +103,12 @@ def hdop_figure(gnss) -> Figure | None:
         if faulty.any() and (~faulty).any():
             fa, rec, _ = metrics.roc(f.hdop[sel], faulty)
             roc_ax.plot(np.r_[fa, 1.0], np.r_[rec, 1.0], c=colour, label=label)
-    roc_ax.legend(fontsize=8)
+    if roc_ax.lines:
+        roc_ax.legend(fontsize=8)
+    else:  # a stretch without a fix beyond the fault, or without a good one: no curve to draw
+        roc_ax.text(
+            0.5, 0.5, f"no ROC: the fixes are not both\nwithin and beyond {metrics.FAULT_M:g} m", ha="center", va="center", transform=roc_ax.transAxes
+        )
     roc_ax.plot([0, 1], [0, 1], ls=":", c="k", lw=1)
     roc_ax.set_xlabel("false-alarm rate")
     roc_ax.set_ylabel("recall")

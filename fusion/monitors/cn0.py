@@ -35,7 +35,7 @@ weights, the larger of one clock's and one per constellation's). The suspects (d
 move it by more than `fault_m` were each reflected with `nlos_bias_m` cos(elevation) of extra path (a reflection off a
 vertical wall 25 m away: `vertical_reflectors`); otherwise the fix is judged on the other satellites' deficits and the
 reason names the suspects and the shift they could cause. A low satellite among many
-barely moves the fix (charles_river: 14 deg among 17, 0.06 m/m, 3.2 m at 50 m), one under a deck among few moves it
+barely moves the fix (charles_river: 14 deg among 17, 0.06 m/m, 3.1 m at 48.5 m), one under a deck among few moves it
 much. The price: a reflection longer than `nlos_bias_m` on a satellite judged harmless moves the fix by more than
 `fault_m`; the consistency monitor beside it in 'combined_cn0' sees that as a displacement the odometry did not make.
 

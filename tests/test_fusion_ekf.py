@@ -308,7 +308,7 @@ def test_a_matchers_pitch_drift_does_not_move_the_speed(seed):
     its mast, in the velocity update: taken as the hull's, 0.8 deg/s moves the speed 1.8 cm/s ahead of the Doppler's
     (1.3 m x 0.014 rad/s). Exact velocities over ground; the forward speed's mean error from 40 s on stays within 3 mm/s."""
     spec = StreamSpec(duration=90.0, report_velocity=True, seed=seed)
-    events, t_grid, _ = generate(spec)
+    events, _, _ = generate(spec)
     drifting = _pitching(events, spec.mount, rate_dps=-0.8)
     ekf = fusion.create("ekf", matcher="m")
     speed_error = []

@@ -258,7 +258,8 @@ def test_a_walk_back_after_a_long_refused_stretch_meets_the_tighter_gate():
     gate (13.5 < 13.8), the reference, carried 20 s along the quay, passed 25 m at its 11 m sigma, and the ekf went 5.5 ->
     29.9 m off. After refused_s of refusals both tests take the guard's gate until a fix passes: the plateau and the
     walk-back stay refused (with the verdict's gate alone, refused_s never reached, a fix 45 m off passes at 13.7 against
-    13.8), and the good fixes after it are trusted within a second."""
+    13.8), and the good fixes after it are trusted within walk_window_s (4 s: steady against the receiver's own velocity
+    over that long, as the next test needs)."""
     ramp = lambda t: float(np.interp(t, [10.0, 25.0, 32.0, 62.0], [0.0, 45.0, 45.0, 0.0]))
     doubted = {"velocity": np.array([2.0, 0.0]), "velocity_cov": np.diag([0.45**2, 0.1**2]), "until": 75.0}
     track = _along_a_wall(until=76.0)
@@ -266,7 +267,27 @@ def test_a_walk_back_after_a_long_refused_stretch_meets_the_tighter_gate():
     assert any(v.trusted for t, v in before if ramp(t) > 6.0)
     verdicts = _feed(monitors.create("consistency"), track, ramp, **doubted)
     assert not any(v.trusted for t, v in verdicts if ramp(t) > 6.0)
-    assert all(v.trusted for t, v in verdicts if t >= 63.0)
+    assert all(v.trusted for t, v in verdicts if t >= 62.0 + 4.0)
+
+
+def test_a_walk_back_that_overshoots_is_refused_through_its_turn():
+    """quickstart seed 4 at 1785.7 s: after 33 s of refused fixes beside a quay the receiver's filter walked back from a
+    reflected ramp, overshot to 10.3 m on the other side and turned there: over the 2 s window its track stood still
+    against the vessel (4.1 under the guard's gate), the reference was 6 m uncertain along the quay, and the ekf went 0.1
+    -> 8.8 m off. Since the receiver must also have moved with its own velocity over ground (or the odometry) against
+    every fix of the last walk_window_s, the turn stays refused; the good fixes after it are trusted within that long."""
+
+    def overshoot(t: float) -> float:  # a ramp to 45 m, its plateau, a walk-back, a turn 10 m beyond (parabolic, 11 s)
+        if t < 55.0:
+            return float(np.interp(t, [10.0, 25.0, 32.0, 55.0], [0.0, 45.0, 45.0, 0.0]))
+        return -10.0 + 10.0 * ((t - 60.5) / 5.5) ** 2 if t < 66.0 else 0.0
+
+    doubted = {"velocity": np.array([2.0, 0.0]), "velocity_cov": np.diag([0.45**2, 0.1**2]), "until": 80.0}
+    one_lag = _feed(monitors.create("consistency", walk_window_s=0.01), _along_a_wall(until=81.0), overshoot, **doubted)
+    assert any(v.trusted for t, v in one_lag if abs(overshoot(t)) > 5.0)
+    verdicts = _feed(monitors.create("consistency"), _along_a_wall(until=81.0), overshoot, **doubted)
+    assert not any(v.trusted for t, v in verdicts if abs(overshoot(t)) > 5.0)
+    assert all(v.trusted for t, v in verdicts if t >= 66.0 + 4.0)
 
 
 def test_the_pf_gives_its_monitor_the_receivers_error_correlation_not_its_likelihoods():

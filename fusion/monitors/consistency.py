@@ -99,6 +99,25 @@ class ConsistencyParams(BaseModel):
         "refusals, a fix 25 m off passed the window test at 13.5 (walking back 1.5 m/s) and the reference at its "
         "along-quay sigma of 11 m, and the ekf went 5.5 -> 29.9 m off; docs/models.md 'Evidence after a refused stretch']",
     )
+    walk_window_s: float = Field(
+        4.0,
+        gt=0,
+        description="after such a refused stretch a fix must also have moved as the receiver's own velocity over ground "
+        "says (its Doppler, RMC; the odometry where it gives none) since the fix about this long earlier, whatever that "
+        "one's verdict, s [4: a consumer receiver's filter halves a fault's effect on its output in about 4 s (the cn0 "
+        "monitor's hold). A filter that overshoots as it walks back stands still against the vessel at the overshoot's "
+        "turn for longer than a window: quickstart seed 4 at 1785.7 s, 33 s into the refused stretch, the output turned "
+        "10.3 m off after moving 9 m against the vessel in 5.6 s, passed the 2 s test at 4.1 under the guard's gate with "
+        "the reference 6 m uncertain along the quay, and the ekf went 0.1 -> 8.8 m off. docs/models.md 'Evidence after "
+        "a refused stretch']",
+    )
+    doppler_sigma_mps: float = Field(
+        0.06,
+        gt=0,
+        description="per-axis sigma of the receiver's velocity over ground, taken as one error over a walk window (its "
+        "slowly varying part does not average out), m/s [0.06, the ekf's gps_velocity_sigma_mps: sim.doppler's range "
+        "rates, centimetres a second, through an open-water geometry]",
+    )
     startup_guard: bool = Field(
         False,
         description="the guard also runs from the first fix and after a reset (the host's re-lock) [False: only after an "
@@ -222,6 +241,50 @@ class ConsistencyMonitor(Monitor):
         r = (obs.xy - ref.xy) - moved[0]
         return mahalanobis2(r, moved[1] + gps)
 
+    def _walk(self, obs: FixObservation, ctx: FixContext) -> float:
+        """The largest Mahalanobis distance squared of the receiver's displacement since each kept fix from walk_window_s
+        to half a window earlier against its own velocity over ground integrated from there (trapezoids over the kept
+        fixes; the odometry's displacement where a fix gives no velocity): a walk-back turning within the window passes
+        a single lag that straddles its turn, not every lag. Only since the receiver's last jump (a step between two
+        fixes beyond the verdict's gate): a filter walks, it does not jump, so a jump is the output taking the
+        measurements again (a fault's end) and the track before it says nothing of a walk now. NaN without a fix that
+        far back."""
+        p = self.params
+        fixes = [old for old, _ in self._history if old.stamp >= obs.stamp - p.walk_window_s] + [obs]
+        steps = [self._step(a, b, ctx) for a, b in zip(fixes, fixes[1:])]
+        jumps = [i + 1 for i, (_, _, d2) in enumerate(steps) if d2 > self.gate]
+        first = jumps[-1] if jumps else 0
+        starts = [i for i in range(first, len(fixes) - 1) if fixes[i].stamp <= obs.stamp - 0.5 * p.window_s]
+        if not starts or fixes[starts[0]].stamp > obs.stamp - 0.5 * p.walk_window_s:
+            return math.nan
+        worst = math.nan
+        for i in starts:
+            moved = sum((steps[k][0] for k in range(i, len(steps))), np.zeros(2))
+            dt = obs.stamp - fixes[i].stamp
+            rho = math.exp(-dt / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
+            cov = (fixes[i].cov + obs.cov) * (1.0 - rho) + np.eye(2) * p.min_diff_sigma_m**2
+            cov = cov + sum((steps[k][1] for k in range(i, len(steps))), np.zeros((2, 2)))
+            d2 = mahalanobis2(obs.xy - fixes[i].xy - moved, cov)
+            worst = d2 if not d2 <= worst else worst
+        return worst
+
+    def _step(self, a: FixObservation, b: FixObservation, ctx: FixContext) -> tuple[np.ndarray, np.ndarray, float]:
+        """The antenna's motion from fix a to fix b by the receiver's own velocity over ground (the mean of the two, its
+        error taken as one over the step), or by the odometry where either gives none; its 2x2 covariance; and the
+        Mahalanobis distance squared of the receiver's step against it (NaN when neither knows the motion)."""
+        va, vb = a.ground_velocity, b.ground_velocity
+        dt = b.stamp - a.stamp
+        if va is not None and vb is not None:
+            moved, cov = 0.5 * (va + vb) * dt, np.eye(2) * (self.params.doppler_sigma_mps * dt) ** 2
+        else:
+            odometry = self._moved(a.stamp, b.stamp, ctx)
+            if odometry is None:
+                return np.full(2, math.nan), np.full((2, 2), math.nan), math.nan
+            moved, cov = odometry
+        rho = math.exp(-dt / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
+        gps = (a.cov + b.cov) * (1.0 - rho) + np.eye(2) * self.params.min_diff_sigma_m**2
+        return moved, cov, mahalanobis2(b.xy - a.xy - moved, cov + gps)
+
     def _reference_at(self, obs: FixObservation, ctx: FixContext) -> tuple[float, np.ndarray, np.ndarray] | None:
         """The reference antenna track carried by the odometry to this fix (None without one)."""
         if self._ref is None or obs.stamp - self._ref_trusted_at > self.params.reference_max_age_s:
@@ -233,14 +296,17 @@ class ConsistencyMonitor(Monitor):
             return obs.stamp, xy, cov + np.eye(2) * spread
         return obs.stamp, xy + moved[0], cov + moved[1]
 
-    def _window_reference(self, stamp: float, verdicts: tuple[str, ...] = ("trusted", "own", "refused")) -> FixObservation | None:
-        """The kept fix nearest to `window_s` before stamp (within half to twice that) among those with one of these
-        verdicts (trusted, own: refused on its own evidence, refused), or None."""
-        target, best = stamp - self.params.window_s, None
+    def _window_reference(
+        self, stamp: float, verdicts: tuple[str, ...] = ("trusted", "own", "refused"), window_s: float | None = None
+    ) -> FixObservation | None:
+        """The kept fix nearest to `window_s` (default the params') before stamp (within half to twice that) among those
+        with one of these verdicts (trusted, own: refused on its own evidence, refused), or None."""
+        window_s = self.params.window_s if window_s is None else window_s
+        target, best = stamp - window_s, None
         for old, verdict in self._history:
             if verdict not in verdicts:
                 continue
-            in_window = stamp - 2.0 * self.params.window_s <= old.stamp <= stamp - 0.5 * self.params.window_s
+            in_window = stamp - 2.0 * window_s <= old.stamp <= stamp - 0.5 * window_s
             if in_window and (best is None or abs(old.stamp - target) < abs(best.stamp - target)):
                 best = old
         return best
@@ -287,6 +353,10 @@ class ConsistencyMonitor(Monitor):
         if stretch and not failed:
             before = self._window_reference(obs.stamp, ("trusted",))
             track_d2 = guard_d2 if before is None else self._distance(before, obs, ctx)
+            # and moved as its own Doppler says since the fix a walk window earlier: an overshooting walk-back stands
+            # still against the vessel at its turn for longer than a window
+            walk_d2 = self._walk(obs, ctx)
+            track_d2 = walk_d2 if walk_d2 > track_d2 else track_d2
         held = stretch and not failed and not self._agrees(track_d2, ref_d2)
         self._pending = _Pending(gap, ref, evidence, weight, failed or held)
         if failed:
@@ -316,7 +386,7 @@ class ConsistencyMonitor(Monitor):
                 self._guard_start = None
         self._last_measured = obs.stamp
         self._history.append((obs, "trusted" if verdict.trusted else "own" if verdict.on_its_own else "refused"))
-        while self._history and self._history[0][0].stamp < obs.stamp - 2.0 * self.params.window_s:
+        while self._history and self._history[0][0].stamp < obs.stamp - 2.0 * max(self.params.window_s, self.params.walk_window_s):
             self._history.popleft()
         # the refused stretch: fixes that failed this monitor's tests, back to back since the first
         self._refused_since = (obs.stamp if self._refused_since is None else self._refused_since) if failed and not gap else None

@@ -21,7 +21,11 @@ blackout and the receiver may be walking back from the fault it carried, while t
 grown as loose as the walk-back: until a fix passes, it also needs the guard's evidence, its own track steady over the
 window (against the fix there, whatever its verdict: the anchors there are fixes refused on C/N0 during the fault, which
 carry it) and the reference within the guard's tighter gate (a walk-back of a metre a second or more fails it; a good
-fix passes with the gate's probability, 0.9).
+fix passes with the gate's probability, 0.9), and its track moving with the receiver's own velocity over ground (Doppler,
+RMC; the odometry where a fix gives none) against every kept fix of the last `walk_window_s` since its last jump: a
+filter walking back that overshoots turns smoothly, and at its turn stands still against the vessel over one window
+while over its half-life it does not (quickstart seed 4 at 1785.7 s, 10.3 m off); a jump is the output taking the
+measurements again, so the track before it is no evidence of a walk now.
 The window test for the verdict uses trusted fixes only, so the end of a fault is
 not mistaken for a jump; the guard's uses any fix, since none is trusted during the guard. Where the window holds no
 anchor (every fix there refused on this monitor's tests), the verdict's window test is against the fix there all the
@@ -103,10 +107,11 @@ class ConsistencyParams(BaseModel):
         4.0,
         gt=0,
         description="after such a refused stretch a fix must also have moved as the receiver's own velocity over ground "
-        "says (its Doppler, RMC; the odometry where it gives none) since the fix about this long earlier, whatever that "
-        "one's verdict, s [4: a consumer receiver's filter halves a fault's effect on its output in about 4 s (the cn0 "
-        "monitor's hold). A filter that overshoots as it walks back stands still against the vessel at the overshoot's "
-        "turn for longer than a window: quickstart seed 4 at 1785.7 s, 33 s into the refused stretch, the output turned "
+        "says (its Doppler, RMC; the odometry where a fix gives none) since every kept fix from this long to half a window "
+        "earlier, whatever their verdicts, back to the receiver's last jump, s [4: a consumer receiver's filter halves a "
+        "fault's effect on its output in about 4 s (the cn0 monitor's hold). A filter that overshoots as it walks back "
+        "stands still against the vessel at the overshoot's turn for about a window: quickstart seed 4 at 1785.7 s, 33 s "
+        "into the refused stretch, the output turned "
         "10.3 m off after moving 9 m against the vessel in 5.6 s, passed the 2 s test at 4.1 under the guard's gate with "
         "the reference 6 m uncertain along the quay, and the ekf went 0.1 -> 8.8 m off. docs/models.md 'Evidence after "
         "a refused stretch']",

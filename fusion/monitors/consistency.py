@@ -301,17 +301,14 @@ class ConsistencyMonitor(Monitor):
             return obs.stamp, xy, cov + np.eye(2) * spread
         return obs.stamp, xy + moved[0], cov + moved[1]
 
-    def _window_reference(
-        self, stamp: float, verdicts: tuple[str, ...] = ("trusted", "own", "refused"), window_s: float | None = None
-    ) -> FixObservation | None:
-        """The kept fix nearest to `window_s` (default the params') before stamp (within half to twice that) among those
-        with one of these verdicts (trusted, own: refused on its own evidence, refused), or None."""
-        window_s = self.params.window_s if window_s is None else window_s
-        target, best = stamp - window_s, None
+    def _window_reference(self, stamp: float, verdicts: tuple[str, ...] = ("trusted", "own", "refused")) -> FixObservation | None:
+        """The kept fix nearest to `window_s` before stamp (within half to twice that) among those with one of these
+        verdicts (trusted, own: refused on its own evidence, refused), or None."""
+        target, best = stamp - self.params.window_s, None
         for old, verdict in self._history:
             if verdict not in verdicts:
                 continue
-            in_window = stamp - 2.0 * window_s <= old.stamp <= stamp - 0.5 * window_s
+            in_window = stamp - 2.0 * self.params.window_s <= old.stamp <= stamp - 0.5 * self.params.window_s
             if in_window and (best is None or abs(old.stamp - target) < abs(best.stamp - target)):
                 best = old
         return best
@@ -358,8 +355,8 @@ class ConsistencyMonitor(Monitor):
         if stretch and not failed:
             before = self._window_reference(obs.stamp, ("trusted",))
             track_d2 = guard_d2 if before is None else self._distance(before, obs, ctx)
-            # and moved as its own Doppler says since the fix a walk window earlier: an overshooting walk-back stands
-            # still against the vessel at its turn for longer than a window
+            # and moved as its own Doppler says since every fix of the last walk window: an overshooting walk-back
+            # stands still against the vessel at its turn for about a window
             walk_d2 = self._walk(obs, ctx)
             track_d2 = walk_d2 if walk_d2 > track_d2 else track_d2
         held = stretch and not failed and not self._agrees(track_d2, ref_d2)
@@ -391,7 +388,7 @@ class ConsistencyMonitor(Monitor):
                 self._guard_start = None
         self._last_measured = obs.stamp
         self._history.append((obs, "trusted" if verdict.trusted else "own" if verdict.on_its_own else "refused"))
-        while self._history and self._history[0][0].stamp < obs.stamp - 2.0 * max(self.params.window_s, self.params.walk_window_s):
+        while self._history and self._history[0][0].stamp < obs.stamp - max(2.0 * self.params.window_s, self.params.walk_window_s):
             self._history.popleft()
         # the refused stretch: fixes that failed this monitor's tests, back to back since the first
         self._refused_since = (obs.stamp if self._refused_since is None else self._refused_since) if failed and not gap else None

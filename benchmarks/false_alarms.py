@@ -2,7 +2,7 @@
 
 Issue 39's goal is at most 5% false alarms (measured fixes the environment moved by 5 m or less that the monitor refused)
 in every scenario; the library's runs give 15-80%. Each refused fix names its rule in gps.csv (`<id>.rule`: cn0.deficit,
-cn0.hold, consistency.guard, consistency.window, consistency.reference, joined by + when several members refused), so
+cn0.hold, consistency.guard, consistency.window, consistency.walk, consistency.reference, joined by + when several members refused), so
 this prints, per scenario and seed found under the given directories (a `riverbench suite --out DIR`, or run
 directories), the estimator's false-alarm rate and each rule's share of it, then each rule's false alarms and caught faults pooled over the runs.
 

@@ -287,6 +287,7 @@ def test_a_walk_back_that_overshoots_is_refused_through_its_turn():
     assert any(v.trusted for t, v in one_lag if abs(overshoot(t)) > 5.0)
     verdicts = _feed(monitors.create("consistency"), _along_a_wall(until=81.0), overshoot, **doubted)
     assert not any(v.trusted for t, v in verdicts if abs(overshoot(t)) > 5.0)
+    assert {v.rule for t, v in verdicts if 60.0 <= t <= 61.0} == {"consistency.walk"}  # the turn: the walk test's refusal
     assert all(v.trusted for t, v in verdicts if t >= 66.0 + 4.0)
 
 

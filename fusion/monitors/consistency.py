@@ -241,10 +241,14 @@ class ConsistencyMonitor(Monitor):
         moved = self._moved(ref.stamp, obs.stamp, ctx)
         if moved is None:
             return math.nan
-        rho = math.exp(-(obs.stamp - ref.stamp) / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
-        gps = (ref.cov + obs.cov) * (1.0 - rho) + np.eye(2) * self.params.min_diff_sigma_m**2
         r = (obs.xy - ref.xy) - moved[0]
-        return mahalanobis2(r, moved[1] + gps)
+        return mahalanobis2(r, moved[1] + self._gps_difference(ref, obs, ctx))
+
+    def _gps_difference(self, a: FixObservation, b: FixObservation, ctx: FixContext) -> np.ndarray:
+        """2x2 noise of the receiver's displacement from fix a to fix b: (C_a + C_b)(1 - rho), their errors correlated by
+        rho = exp(-dt / correlation_s), plus the floor min_diff_sigma_m per axis."""
+        rho = math.exp(-(b.stamp - a.stamp) / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
+        return (a.cov + b.cov) * (1.0 - rho) + np.eye(2) * self.params.min_diff_sigma_m**2
 
     def _walk(self, obs: FixObservation, ctx: FixContext) -> float:
         """The largest Mahalanobis distance squared of the receiver's displacement since each kept fix from walk_window_s
@@ -265,10 +269,7 @@ class ConsistencyMonitor(Monitor):
         worst = math.nan
         for i in starts:
             moved = sum((steps[k][0] for k in range(i, len(steps))), np.zeros(2))
-            dt = obs.stamp - fixes[i].stamp
-            rho = math.exp(-dt / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
-            cov = (fixes[i].cov + obs.cov) * (1.0 - rho) + np.eye(2) * p.min_diff_sigma_m**2
-            cov = cov + sum((steps[k][1] for k in range(i, len(steps))), np.zeros((2, 2)))
+            cov = self._gps_difference(fixes[i], obs, ctx) + sum((steps[k][1] for k in range(i, len(steps))), np.zeros((2, 2)))
             d2 = mahalanobis2(obs.xy - fixes[i].xy - moved, cov)
             worst = d2 if not d2 <= worst else worst
         return worst
@@ -286,9 +287,7 @@ class ConsistencyMonitor(Monitor):
             if odometry is None:
                 return np.full(2, math.nan), np.full((2, 2), math.nan), math.nan
             moved, cov = odometry
-        rho = math.exp(-dt / ctx.correlation_s) if ctx.correlation_s > 0 else 0.0
-        gps = (a.cov + b.cov) * (1.0 - rho) + np.eye(2) * self.params.min_diff_sigma_m**2
-        return moved, cov, mahalanobis2(b.xy - a.xy - moved, cov + gps)
+        return moved, cov, mahalanobis2(b.xy - a.xy - moved, cov + self._gps_difference(a, b, ctx))
 
     def _reference_at(self, obs: FixObservation, ctx: FixContext) -> tuple[float, np.ndarray, np.ndarray] | None:
         """The reference antenna track carried by the odometry to this fix (None without one)."""
@@ -351,22 +350,24 @@ class ConsistencyMonitor(Monitor):
         # refused on C/N0 during the fault, which carry it), and the reference within the guard's gate
         refused_for = 0.0 if gap or self._refused_since is None else obs.stamp - self._refused_since
         stretch = refused_for >= self.params.refused_s
-        failed, track_d2 = bool(tests) and statistic > self.gate, math.nan
+        failed, track_d2, walk_d2 = bool(tests) and statistic > self.gate, math.nan, math.nan
         if stretch and not failed:
             before = self._window_reference(obs.stamp, ("trusted",))
             track_d2 = guard_d2 if before is None else self._distance(before, obs, ctx)
             # and moved as its own Doppler says since every fix of the last walk window: an overshooting walk-back
             # stands still against the vessel at its turn for about a window
             walk_d2 = self._walk(obs, ctx)
-            track_d2 = walk_d2 if walk_d2 > track_d2 else track_d2
-        held = stretch and not failed and not self._agrees(track_d2, ref_d2)
+        held = stretch and not failed and not (self._agrees(track_d2, ref_d2) and not walk_d2 > self.guard_gate)
         self._pending = _Pending(gap, ref, evidence, weight, failed or held)
         if failed:
             which = "window" if window_d2 == statistic else "reference"
             why = f"{which} displacement test {statistic:.1f} > gate {self.gate:.1f}"
             return Verdict(False, statistic, why, rule=f"consistency.{which}", steady=steady)
         if held:
-            which, d2 = ("window", track_d2) if not track_d2 <= self.guard_gate else ("reference", ref_d2)
+            if not track_d2 <= self.guard_gate:  # NaN: no track to judge, held
+                which, d2 = "window", track_d2
+            else:
+                which, d2 = ("walk", walk_d2) if walk_d2 > self.guard_gate else ("reference", ref_d2)
             why = f"{which} displacement test {d2:.1f} > gate {self.guard_gate:.1f} after {refused_for:.1f} s refused"
             return Verdict(False, statistic, why, rule=f"consistency.{which}", steady=steady)
         if in_guard:

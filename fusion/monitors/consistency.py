@@ -271,7 +271,7 @@ class ConsistencyMonitor(Monitor):
             moved = sum((steps[k][0] for k in range(i, len(steps))), np.zeros(2))
             cov = self._gps_difference(fixes[i], obs, ctx) + sum((steps[k][1] for k in range(i, len(steps))), np.zeros((2, 2)))
             d2 = mahalanobis2(obs.xy - fixes[i].xy - moved, cov)
-            worst = d2 if not d2 <= worst else worst
+            worst = d2 if math.isnan(worst) or d2 > worst else worst  # a lag the motion does not cover (NaN) masks none
         return worst
 
     def _step(self, a: FixObservation, b: FixObservation, ctx: FixContext) -> tuple[np.ndarray, np.ndarray, float]:

@@ -575,6 +575,21 @@ def test_passage_never_recovering_is_nan_and_edges_of_the_run():
     assert last.exit_error == 5.0 and last.entry_error == 5.0 and math.isnan(last.recover_s)
 
 
+def test_settling_counts_a_return_within_2_m_only_once_it_lasts():
+    """Analytic: 1 m off at an NLOS window's end (5 s), 3 m off from 7.1 to 8.9 s, 1 m after: the return that lasts
+    SETTLED_FOR_S (10 s) starts at 9.0 s, so settle_s is 4.0 s, not the first touch's 0.1 s; with the next window
+    starting at 6.0 s the return need last only until then (0.1 s); never back to stay: NaN."""
+    t = np.arange(300) / 10.0
+    error = np.where((t > 7.0) & (t < 9.0), 3.0, 1.0)
+    nlos = win.Window("nlos", 4.0, 5.0)
+    assert win.passage(nlos, t, error).settle_s == pytest.approx(4.0)
+    assert win.passage(nlos, t, error, until=6.0).settle_s == pytest.approx(0.1)
+    assert math.isnan(win.passage(nlos, t, np.where(t > 7.0, 3.0, 1.0)).settle_s)
+    windows = [nlos, win.Window("blackout", 6.0, 6.5)]
+    assert win.next_start(nlos, windows) == 6.0 and win.next_start(windows[1], windows) == math.inf
+    assert metrics.window_metrics(windows, t, error)["nlos"]["settle_s"] == pytest.approx(0.1)
+
+
 def test_a_window_holds_the_scans_its_fixes_shaped_so_a_sub_nanosecond_shift_of_its_fixes_moves_nothing():
     # issue 41: at equal stamps the scan is fed before the fix, so the scan at a window's first fix has not seen it and
     # the one at the fix that ends it is still inside; with [start, end) a fix 1e-10 s later moved a scan across

@@ -19,6 +19,7 @@ bench's yaw error is heading only (evo's angle_deg also counts roll and pitch: e
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
@@ -122,13 +123,14 @@ def write_windows_csv(path: Path, windows: list[win.Window], rec: RunRecord, err
         for window in windows:
             row = [window.kind, f"{window.start:.3f}", f"{window.end:.3f}", f"{window.duration:.3f}"]
             for error in errors.values():
-                row += passage_cells(window, rec.scan_t, error)
+                row += passage_cells(window, rec.scan_t, error, win.next_start(window, windows))
             w.writerow(row)
 
 
-def passage_cells(window: win.Window, t: np.ndarray, error: np.ndarray) -> list[str]:
-    """The PASSAGE_KEYS cells of windows.csv for an estimate with horizontal `error` at scan times `t` through `window`."""
-    p = win.passage(window, t, error)
+def passage_cells(window: win.Window, t: np.ndarray, error: np.ndarray, until: float = math.inf) -> list[str]:
+    """The PASSAGE_KEYS cells of windows.csv for an estimate with horizontal `error` at scan times `t` through `window`
+    (`until`: the next window's start)."""
+    p = win.passage(window, t, error, until)
     return [_fmt1(getattr(p, k), 3) for k in PASSAGE_KEYS]
 
 

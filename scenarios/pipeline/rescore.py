@@ -205,7 +205,8 @@ def rewrite_windows_csv(path: Path, run: FinishedRun, name: str, error: np.ndarr
         w = csv.writer(handle)
         w.writerow([header[i] for i in keep] + added)
         for row, window in zip(body, run.windows):
-            w.writerow([row[i] for i in keep] + (files.passage_cells(window, run.scan_t, error) if error is not None else []))
+            cells = [] if error is None else files.passage_cells(window, run.scan_t, error, win.next_start(window, run.windows))
+            w.writerow([row[i] for i in keep] + cells)
 
 
 @contextmanager

@@ -281,12 +281,13 @@ def window_metrics(windows: list[win.Window], t: np.ndarray, error: np.ndarray, 
     """Per kind: count, total seconds, and the worst max error, exit error, added error and recovery
     time over its windows; `recovered` is the share of windows after which the error came back
     (recover_s is the worst over those that did); `settled` the share after which it came within SETTLED_M of the truth
-    (settle_s the worst time that took over those that did); with `yaw_error` (deg), `yaw`: the heading error's p95 and max over
-    the scans inside its windows, where a filter that trusted odometry or a disturbed compass shows its heading drift."""
+    to stay (SETTLED_FOR_S, or until the next window; settle_s the worst time that took over those that did); with
+    `yaw_error` (deg), `yaw`: the heading error's p95 and max over the scans inside its windows, where a filter that
+    trusted odometry or a disturbed compass shows its heading drift."""
     out = {}
     for kind in win.KINDS:
         mine = [w for w in windows if w.kind == kind]
-        passages = [win.passage(w, t, error) for w in mine]
+        passages = [win.passage(w, t, error, win.next_start(w, windows)) for w in mine]
         worst = lambda key, passages=passages: _nanmax([getattr(p, key) for p in passages])
         recovered = [math.isfinite(p.recover_s) for p in passages]
         out[kind] = {

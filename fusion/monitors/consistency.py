@@ -127,8 +127,9 @@ class ConsistencyParams(BaseModel):
     walk_noise_learned: bool = Field(
         True,
         description="the walk test judges the receiver's displacement against its velocity with the spread of its own "
-        "clean track, learned from the fixes the host trusted (fusion.monitors.track_noise: the root mean square "
-        "residual over 1 s, scaled as the square root of the lag), once 50 are learned [True: the host's error model "
+        "clean track, learned from the fixes the host trusted (fusion.monitors.track_noise: the normal-consistent median "
+        "absolute deviation per axis of the residual over 1 s, scaled as the square root of the lag), once 50 are "
+        "learned [True: the host's error model "
         "(HDOP x UERE correlated over gps_correlation_s, floored at min_diff_sigma_m) is 4 times looser than the "
         "simulated receiver's clean track, and a walk-back's tail turning at 0.9 m/s passed it (the full quickstart, "
         "seed 0, 1790.0 s: 1.8 m against the Doppler over 4 s, 4.5 under the gate's 4.6; the ekf 2.2 -> 4.5 m off). "

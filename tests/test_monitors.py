@@ -314,7 +314,7 @@ def test_the_track_noise_is_the_receivers_clean_spread_whatever_a_faults_onset_a
         if k == 50:
             assert noise.sigma_m is None
     assert noise.sigma_m == pytest.approx([0.1, 0.05], rel=0.15)
-    assert noise.noise(kept[0], kept[-1]) == pytest.approx(np.diag(noise.sigma_m**2) * (kept[-1].stamp - kept[0].stamp))
+    assert noise.noise_of(noise.sigma_m, kept[0], kept[-1]) == pytest.approx(np.diag(noise.sigma_m**2) * (kept[-1].stamp - kept[0].stamp))
 
 
 def test_a_walk_backs_tail_is_judged_on_the_receivers_own_clean_track():

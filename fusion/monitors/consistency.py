@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -280,19 +281,22 @@ class ConsistencyMonitor(Monitor):
         starts = [i for i in range(first, len(fixes) - 1) if fixes[i].stamp <= obs.stamp - 0.5 * p.window_s]
         if not starts or fixes[starts[0]].stamp > obs.stamp - 0.5 * p.walk_window_s:
             return math.nan
-        worst = math.nan
+        worst, noise = math.nan, self._walk_noise(ctx)
         for i in starts:
             moved = sum((steps[k][0] for k in range(i, len(steps))), np.zeros(2))
-            cov = self._walk_noise(fixes[i], obs, ctx) + sum((steps[k][1] for k in range(i, len(steps))), np.zeros((2, 2)))
+            cov = noise(fixes[i], obs) + sum((steps[k][1] for k in range(i, len(steps))), np.zeros((2, 2)))
             d2 = mahalanobis2(obs.xy - fixes[i].xy - moved, cov)
             worst = d2 if math.isnan(worst) or d2 > worst else worst  # a lag the motion does not cover (NaN) masks none
         return worst
 
-    def _walk_noise(self, a: FixObservation, b: FixObservation, ctx: FixContext) -> np.ndarray:
-        """Noise of the receiver's displacement from fix a to fix b for the walk test: its own clean track's, learned
-        (fusion.monitors.track_noise), once learned and with walk_noise_learned; else the host's error model's."""
-        learned = self._track_noise.noise(a, b) if self.params.walk_noise_learned else None
-        return self._gps_difference(a, b, ctx) if learned is None else learned
+    def _walk_noise(self, ctx: FixContext) -> Callable[[FixObservation, FixObservation], np.ndarray]:
+        """The noise of the receiver's displacement between two fixes for the walk test: its own clean track's, learned
+        (fusion.monitors.track_noise), once learned and with walk_noise_learned; else the host's error model's. Chosen
+        once per fix, so the learned spread is taken once for all its lags."""
+        sigma = self._track_noise.sigma_m if self.params.walk_noise_learned else None
+        if sigma is None:
+            return lambda a, b: self._gps_difference(a, b, ctx)
+        return lambda a, b: self._track_noise.noise_of(sigma, a, b)
 
     def _step(self, a: FixObservation, b: FixObservation, ctx: FixContext) -> tuple[np.ndarray, np.ndarray, float]:
         """The antenna's motion from fix a to fix b by the receiver's own velocity over ground (the mean of the two, its

@@ -48,10 +48,10 @@ class TrackNoise:
         r = np.asarray(self._residuals)
         return np.maximum(MAD_TO_SIGMA * np.median(np.abs(r - np.median(r, axis=0)), axis=0), RESOLUTION_M)
 
-    def noise(self, a: FixObservation, b: FixObservation) -> np.ndarray | None:
-        """2x2 noise of the receiver's displacement from fix a to fix b less its velocity's integral (None until learned)."""
-        sigma = self.sigma_m
-        return None if sigma is None else np.diag(sigma**2) * (b.stamp - a.stamp) / self.lag_s
+    def noise_of(self, sigma: np.ndarray, a: FixObservation, b: FixObservation) -> np.ndarray:
+        """2x2 noise of the receiver's displacement from fix a to fix b less its velocity's integral, for the learned
+        per-axis spread `sigma` (sigma_m, taken once for the many lags of one fix)."""
+        return np.diag(sigma**2) * (b.stamp - a.stamp) / self.lag_s
 
     def learn(self, trusted: Sequence[FixObservation]) -> None:
         """Learn from consecutive fixes the host trusted, the newest last: the residual from the newest fix at least lag_s

@@ -110,11 +110,11 @@ def settled_from(t: np.ndarray, error: np.ndarray, after: np.ndarray, until: flo
     stays within it for SETTLED_FOR_S or until `until` (the next window's start) or the run's end; NaN: none."""
     out = ~(error <= SETTLED_M)  # NaN counts as out
     exceed = np.flatnonzero(out)
-    for i in after[~out[after]]:
-        j = np.searchsorted(exceed, i)  # the first scan out after i
-        if j == len(exceed) or t[exceed[j]] >= min(t[i] + SETTLED_FOR_S, until):
-            return float(t[i])
-    return math.nan
+    within = after[~out[after]]
+    j = np.searchsorted(exceed, within)  # the first scan out after each
+    leaves = t[exceed[np.minimum(j, len(exceed) - 1)]] if len(exceed) else np.full(len(within), math.inf)
+    lasts = (j == len(exceed)) | (leaves >= np.minimum(t[within] + SETTLED_FOR_S, until))
+    return float(t[within[np.argmax(lasts)]]) if lasts.any() else math.nan
 
 
 def passage(window: Window, t: np.ndarray, error: np.ndarray, until: float = math.inf) -> Passage:

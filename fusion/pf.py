@@ -14,6 +14,15 @@ Rao-Blackwellised: each particle keeps its bias mean, all share the bias covaria
 linear-Gaussian recursion for every one); a particle's bias update is down-weighted like the
 Student-t weighs an outlier. Without it (the default) fixes are independent draws; the monitor still
 reads the receiver's correlation time, gps_correlation_s.
+
+What the particles cannot carry, the reported covariance does (a Schmidt "consider" covariance, Schmidt 1966; Bierman,
+Factorization Methods for Discrete Sequential Estimation, 1977, ch. VIII): fixes weighed as independent draws pull
+the cloud onto their common Gauss-Markov error, which averaging them does not remove, so the cloud's spread says
+nothing of it. Beside the cloud the filter keeps the variance of the receiver's correlated error its estimate took in
+(each fix moves the estimate by the share K the cloud's spread shrank by, as a Kalman gain does: e = (1 - K) e + K b)
+and its covariance with the receiver's current error (which decays over gps_correlation_s), and reports the cloud's
+spread plus that variance: what the protection level (fusion.integrity) and the exports read. The particles and the
+track are unchanged.
 """
 
 from __future__ import annotations
@@ -107,6 +116,8 @@ class Pf(Estimator):
         self.bias = np.zeros((n, 2))  # per-particle mean of the receiver's correlated error
         self.bias_cov = np.zeros((2, 2))  # its covariance, shared
         self._bias_var = 0.0
+        self._taken = 0.0  # per-axis variance of the receiver's correlated error the estimate took in from its fixes
+        self._taken_with_bias = 0.0  # its covariance with the receiver's correlated error now
         self._coast_cov = np.zeros((3, 3))  # process spread accumulated since the clone, body frame
         self._clone_stamp = 0.0
         self.gyro_bias = np.zeros(n)  # per particle, rad/s (with an IMU)
@@ -147,6 +158,7 @@ class Pf(Estimator):
         self.logw = np.full(n, -math.log(n))
         self.bias = np.zeros((n, 2))
         self.bias_cov = np.eye(2) * self._bias_var
+        self._taken = self._taken_with_bias = 0.0  # the cloud is drawn from the alignment's covariance, the fixes' error in it
         if self.uses_imu and not self._init:  # a re-alignment keeps the particles' gyro biases
             self.gyro_bias = math.radians(self.inertial.gyro_bias_sigma_dps) * self.rng.standard_normal(n)
         self._init = True
@@ -174,6 +186,8 @@ class Pf(Estimator):
         self.poses[:, 2] = wrap_angle(self.poses[:, 2] + body[:, 2])
         self.vel += dv
         self._coast_cov += coast
+        if self.params.gps_correlation_s > 0:
+            self._taken_with_bias *= math.exp(-dt / self.params.gps_correlation_s)
         if self._correlated():
             rho = math.exp(-dt / self.params.gps_correlation_s)
             self.bias *= rho
@@ -228,14 +242,20 @@ class Pf(Estimator):
         var = self.params.bias_variance(float(np.trace(obs.cov)) / 2.0)
         if self._correlated() and self._init and self._bias_var == 0.0:
             self.bias_cov = np.eye(2) * var  # initialised before any fix: as uncertain as the receiver
+        if self._bias_var > 0.0:  # the receiver's error follows its HDOP (Ekf._set_bias_level): so does what it shares
+            self._taken_with_bias *= math.sqrt(var / self._bias_var)
         self._bias_var = var
 
     def _update_fix(self, obs: FixObservation) -> None:
         nu = self.params.gps_dof
         if not self._correlated():
-            r = obs.xy - self._antennas()
+            antennas = self._antennas()
+            before = float(np.trace(self._mean_cov(antennas, None)[1]))
+            r = obs.xy - antennas
             d2 = np.einsum("ni,ij,nj->n", r, np.linalg.inv(obs.cov + np.eye(2) * obs.allowance_m**2), r)
             self.logw += -0.5 * (nu + 2.0) * np.log1p(d2 / nu)
+            if before > 0.0:
+                self._take_in(1.0 - float(np.trace(self._mean_cov(antennas, None)[1])) / before)
             self._after_weighting()
             return
         S = self.bias_cov + np.eye(2) * (self.params.gps_white_sigma_m**2 + obs.allowance_m**2)
@@ -247,6 +267,15 @@ class Pf(Estimator):
         self.bias += ((nu + 2.0) / (nu + d2))[:, None] * (r @ gain.T)
         self.bias_cov = (np.eye(2) - gain) @ self.bias_cov
         self._after_weighting()
+
+    def _take_in(self, gain: float) -> None:
+        """A fix moved the estimate by `gain` (the share its cloud's spread shrank by) towards its position: the estimate
+        took in that share of the receiver's correlated error (the module docstring's consider covariance)."""
+        if self.params.gps_correlation_s <= 0:  # independent fixes: nothing shared that averaging leaves
+            return
+        k, b = min(max(gain, 0.0), 1.0), self._bias_var
+        self._taken = (1.0 - k) ** 2 * self._taken + 2.0 * k * (1.0 - k) * self._taken_with_bias + k * k * b
+        self._taken_with_bias = (1.0 - k) * self._taken_with_bias + k * b
 
     def _after_weighting(self) -> None:
         self.logw -= self.logw.max()
@@ -287,6 +316,7 @@ class Pf(Estimator):
         self.clones[:, :2] += moved
         self.bias[:] = 0.0
         self.bias_cov = np.eye(2) * self._bias_var
+        self._taken = self._taken_with_bias = 0.0  # the cloud is spread by the fix's whole covariance
         self.logw = np.full(n, -math.log(n))
 
     def _mean_cov(self, values: np.ndarray, angular: int | None) -> tuple[np.ndarray, np.ndarray]:
@@ -314,7 +344,11 @@ class Pf(Estimator):
         return self._mean_cov(self.poses, 2)[0]
 
     def _cov3(self) -> np.ndarray:
-        return self._mean_cov(self.poses, 2)[1]
+        """The cloud's spread plus the receiver's correlated error the estimate took in (the consider covariance)."""
+        cov = self._mean_cov(self.poses, 2)[1]
+        cov[0, 0] += self._taken
+        cov[1, 1] += self._taken
+        return cov
 
     def _predicted_antenna(self, obs: FixObservation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if not self._correlated():

@@ -187,11 +187,11 @@ class Pf(Estimator):
         self.vel += dv
         self._coast_cov += coast
         if self.params.gps_correlation_s > 0:
-            self._taken_with_bias *= math.exp(-dt / self.params.gps_correlation_s)
-        if self._correlated():
             rho = math.exp(-dt / self.params.gps_correlation_s)
-            self.bias *= rho
-            self.bias_cov = rho**2 * self.bias_cov + np.eye(2) * self._bias_var * (1.0 - rho**2)
+            self._taken_with_bias *= rho
+            if self._correlated():
+                self.bias *= rho
+                self.bias_cov = rho**2 * self.bias_cov + np.eye(2) * self._bias_var * (1.0 - rho**2)
 
     def _odometry(self, stamp: float, step: np.ndarray, step_cov: np.ndarray) -> str:
         if not self._init:
@@ -250,12 +250,13 @@ class Pf(Estimator):
         nu = self.params.gps_dof
         if not self._correlated():
             antennas = self._antennas()
-            before = float(np.trace(self._mean_cov(antennas, None)[1]))
+            tracked = self.params.gps_correlation_s > 0  # independent fixes share nothing that averaging leaves
+            before = self._spread(antennas) if tracked else 0.0
             r = obs.xy - antennas
             d2 = np.einsum("ni,ij,nj->n", r, np.linalg.inv(obs.cov + np.eye(2) * obs.allowance_m**2), r)
             self.logw += -0.5 * (nu + 2.0) * np.log1p(d2 / nu)
             if before > 0.0:
-                self._take_in(1.0 - float(np.trace(self._mean_cov(antennas, None)[1])) / before)
+                self._take_in(1.0 - self._spread(antennas) / before)
             self._after_weighting()
             return
         S = self.bias_cov + np.eye(2) * (self.params.gps_white_sigma_m**2 + obs.allowance_m**2)
@@ -271,11 +272,13 @@ class Pf(Estimator):
     def _take_in(self, gain: float) -> None:
         """A fix moved the estimate by `gain` (the share its cloud's spread shrank by) towards its position: the estimate
         took in that share of the receiver's correlated error (the module docstring's consider covariance)."""
-        if self.params.gps_correlation_s <= 0:  # independent fixes: nothing shared that averaging leaves
-            return
         k, b = min(max(gain, 0.0), 1.0), self._bias_var
         self._taken = (1.0 - k) ** 2 * self._taken + 2.0 * k * (1.0 - k) * self._taken_with_bias + k * k * b
         self._taken_with_bias = (1.0 - k) * self._taken_with_bias + k * b
+
+    def _spread(self, values: np.ndarray) -> float:
+        """Total weighted variance of (N, 2) positions under the current weights (the trace of their covariance)."""
+        return float(np.trace(self._mean_cov(values, None)[1]))
 
     def _after_weighting(self) -> None:
         self.logw -= self.logw.max()

@@ -17,11 +17,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.stats import norm
 
 import fusion
 import scenarios
 from fusion import monitors
 from fusion.monitors import FixContext
+from fusion.monitors.cn0 import per_satellite_gate
 from fusion.observation import screen
 from fusion.odometry import OdometryTrack
 from scenarios.pipeline.assembly import assemble
@@ -109,8 +111,9 @@ def test_satellite_deficits_are_the_verdicts_evidence_per_used_satellite(learned
     expected, _ = learned.template(el[used])
     assert [s.prn for s in sats] == [1, 2, 3, 4, 6] and note == ""
     np.testing.assert_allclose(deficits, (expected - snr[used]) / sigma)
-    assert int(np.argmax(deficits)) == 2 and deficits[2] > learned.gate
-    assert learned.check(obs, CTX).statistic == deficits.max()
+    level = per_satellite_gate(learned.gate, len(deficits))  # the fix's gate (family_gate), in each satellite's sigma
+    assert int(np.argmax(deficits)) == 2 and deficits[2] > level
+    assert learned.check(obs, CTX).statistic == pytest.approx(deficits.max() * learned.gate / level)
     assert monitors.create("cn0").satellite_deficits(obs).startswith("learning the C/N0 template")
 
 
@@ -123,8 +126,26 @@ def test_a_weak_satellite_the_receiver_did_not_use_is_harmless(learned):
     assert learned.check(screen(make_fix(100.0, el, snr, used), 3.0, False)[0], CTX).trusted
 
 
+@given(gate=st.floats(1.0, 6.0), n=st.integers(1, 60))
+def test_the_gate_holds_for_the_fix_whatever_its_satellites(gate, n):
+    # Sidak: the largest of n direct signals' deficits exceeds each one's level with the probability one exceeds the gate
+    level = per_satellite_gate(gate, n)
+    assert -math.expm1(n * math.log1p(-norm.sf(level))) == pytest.approx(norm.sf(gate), rel=1e-6)
+    assert level >= gate and (n == 1) == (level == gate)
+    assert per_satellite_gate(gate, n + 1) > level
+
+
+def test_the_largest_of_many_direct_deficits_passes_the_fix_gate_at_its_rate():
+    # Monte Carlo of the verdict's statistic on direct signals alone: 16 standard normal deficits per fix
+    deficits = np.random.default_rng(4).standard_normal((400_000, 16))
+    gate = 3.0  # 1.35e-3 a fix: measurable in 4e5 fixes (the default 4 sigma, 3e-5, would need 1e7)
+    over = (deficits.max(axis=1) > per_satellite_gate(gate, 16)).mean()
+    assert over == pytest.approx(norm.sf(gate), rel=0.1)  # 540 expected: 4.3 sigma of Poisson spread
+    assert (deficits.max(axis=1) > gate).mean() > 10 * norm.sf(gate)  # the per-satellite gate alone: 16 times as often
+
+
 def test_clean_fixes_pass_at_the_nominal_false_alarm_rate(learned):
-    # gate 4 sigma: 3e-5 per direct satellite, 3e-4 per 10-satellite fix; allow the template's estimation error
+    # gate 4 sigma for the fix (family_gate): 3e-5 per fix of direct signals; allow the template's estimation error
     rng = np.random.default_rng(3)
     verdicts = [
         learned.check(screen(make_fix(100.0 + 0.2 * k, el, snr), 3.0, False)[0], CTX) for k, (_, el, snr) in enumerate(clean_epochs(rng, 3000))
@@ -272,7 +293,8 @@ def test_flagged_exactly_when_a_used_satellite_is_nlos(learned, geometry, loss_d
     verdict = learned.check(screen(make_fix(100.0, el, snr, used), 3.0, False)[0], CTX)
     assert verdict.trusted == (not np.any(nlos & used))
     if used.any():
-        assert verdict.statistic == pytest.approx(np.max(((learned.template(el)[0] - snr) / learned.template(el)[1])[used]))
+        raw = np.max(((learned.template(el)[0] - snr) / learned.template(el)[1])[used])
+        assert verdict.statistic == pytest.approx(raw * learned.gate / per_satellite_gate(learned.gate, int(used.sum())))
 
 
 def test_bad_reports_are_skipped_with_a_reason(learned):

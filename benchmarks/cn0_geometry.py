@@ -7,7 +7,8 @@ default, vertical_reflectors) nlos_bias_m cos(elevation), the extra path off a v
 Charles River the trees' crowns attenuate direct signals (sim.GnssReceiver's foliage_loss_db_per_m); unweighed
 (nlos_bias_m 0, the monitor before 2026-12) one attenuated satellite among a four-constellation fix's 15-18 refused it,
 though it moves the fix by little. This prints the monitor's recall and false alarms unweighed and at each --bias-m,
-with and without the cos(elevation).
+with and without the cos(elevation), and (--per-satellite-gate) with every satellite tested at gate_sigma, as before the
+gate held for the fix (family_gate, Sidak 1967).
 
 Per library scenario and seed, its [fast] stretch's GNSS fixes alone (as benchmarks/cn0_satellites.py: no LiDAR, a
 closed-loop scenario sailed open loop), each screened and judged as an estimator does (check, then commit). A fix is
@@ -33,7 +34,7 @@ from scenarios.pipeline.assembly import assemble
 UERE_M = 3.0
 
 
-def stream(name: str, seed: int, fault_m: float, bias_m: list[float]) -> dict[str, list[int]]:
+def stream(name: str, seed: int, fault_m: float, bias_m: list[float], per_satellite: bool) -> dict[str, list[int]]:
     """Per monitor [faulty refused, faulty, good refused, good] over one stretch's judged fixes."""
     scenario = scenarios.load(name, seed=seed).fast_variant()
     if scenario.control.mode != "open_loop":
@@ -42,6 +43,9 @@ def stream(name: str, seed: int, fault_m: float, bias_m: list[float]) -> dict[st
     judges = {"unweighed (nlos_bias_m 0)": monitors.create("cn0", nlos_bias_m=0.0, fault_m=fault_m)}
     judges |= {f"nlos_bias_m {b:g}": monitors.create("cn0", nlos_bias_m=b, fault_m=fault_m, vertical_reflectors=False) for b in bias_m}
     judges |= {f"nlos_bias_m {b:g} cos(el) (default)": monitors.create("cn0", nlos_bias_m=b, fault_m=fault_m) for b in bias_m}
+    if per_satellite:
+        per = {f"nlos_bias_m {b:g} cos(el), per-satellite gate": dict(nlos_bias_m=b, fault_m=fault_m, family_gate=False) for b in bias_m}
+        judges |= {rule: monitors.create("cn0", **params) for rule, params in per.items()}
     counts = {rule: [0, 0, 0, 0] for rule in judges}
     for t in run.receiver.epochs(run.t_end, run.t_start):
         fix = run.receiver.fix(run.vessel_run.world, run.trajectory, float(t))
@@ -69,6 +73,9 @@ def main() -> int:
     parser.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2])
     parser.add_argument("--fault-m", type=float, default=5.0, help="environment-added error that makes a fix faulty, m [5]")
     parser.add_argument("--bias-m", nargs="*", type=float, default=[25.0, 50.0, 100.0], help="NLOS range biases to weigh the suspects with, m")
+    parser.add_argument(
+        "--per-satellite-gate", action="store_true", help="also judge each satellite at gate_sigma (family_gate false, the gate before 2026-12-08)"
+    )
     args = parser.parse_args()
     try:
         for name in args.scenarios:
@@ -84,7 +91,7 @@ def main() -> int:
     for name in args.scenarios:
         total: dict[str, np.ndarray] = {}
         for seed in args.seeds:
-            for rule, c in stream(name, seed, args.fault_m, args.bias_m).items():
+            for rule, c in stream(name, seed, args.fault_m, args.bias_m, args.per_satellite_gate).items():
                 total[rule] = total.get(rule, np.zeros(4, dtype=int)) + c
         for rule, (caught, faulty, alarms, good) in total.items():
             recall = f"{caught / faulty:.3f}" if faulty else "-"

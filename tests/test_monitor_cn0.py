@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.stats import norm
 
@@ -24,6 +24,7 @@ import scenarios
 from fusion import monitors
 from fusion.monitors import FixContext
 from fusion.monitors.cn0 import per_satellite_gate
+from fusion.monitors.satellite_geometry import horizontal_slopes
 from fusion.observation import screen
 from fusion.odometry import OdometryTrack
 from scenarios.pipeline.assembly import assemble
@@ -284,17 +285,28 @@ def test_during_warm_up_it_says_it_is_learning():
     geometry=st.lists(st.tuples(st.floats(6.0, 89.0), st.booleans(), st.booleans(), st.floats(-2.0, 2.0)), min_size=1, max_size=14),
     loss_db=st.floats(7.0, 12.0),
 )
-def test_flagged_exactly_when_a_used_satellite_is_nlos(learned, geometry, loss_db):
-    # within +-2 dB of the template a direct signal passes; 7 dB or more below it, flagged
+@example(geometry=[(6.0, True, True, 0.0), (7.0, False, True, 0.0), (7.0, False, True, 0.0), (7.0, False, True, 0.0)], loss_db=7.0)
+def test_flagged_exactly_when_a_used_satellite_is_nlos_and_could_move_the_fix(learned, geometry, loss_db):
+    # within +-2 dB of the template a direct signal passes; 7 dB or more below it, a suspect, which refuses the fix when
+    # the suspects could move it by more than fault_m (nlos_bias_m cos(el) of extra path each, times its slope): four
+    # satellites at 6-7 deg put a bias on the lowest into the height and clock, not the horizontal fix (hypothesis found it)
     el = np.array([g[0] for g in geometry])
     nlos = np.array([g[1] for g in geometry])
     used = np.array([g[2] for g in geometry])
     snr = HORIZON_DBHZ + (ZENITH_DBHZ - HORIZON_DBHZ) * np.sin(np.deg2rad(el)) + np.array([g[3] for g in geometry]) - loss_db * nlos
-    verdict = learned.check(screen(make_fix(100.0, el, snr, used), 3.0, False)[0], CTX)
-    assert verdict.trusted == (not np.any(nlos & used))
+    fix = make_fix(100.0, el, snr, used)
+    verdict = learned.check(screen(fix, 3.0, False)[0], CTX)
+    p, suspects = learned.params, (nlos & used)[used]
+    harmful = False
+    if suspects.any():
+        slopes = horizontal_slopes(el[used], np.array([s.az_deg for s in fix.sats])[used], ["GPS"] * int(used.sum()))
+        harmful = float(np.sum((slopes * p.nlos_bias_m * np.cos(np.deg2rad(el[used])))[suspects])) > p.fault_m
+    assert verdict.trusted == (not harmful)
     if used.any():
-        raw = np.max(((learned.template(el)[0] - snr) / learned.template(el)[1])[used])
-        assert verdict.statistic == pytest.approx(raw * learned.gate / per_satellite_gate(learned.gate, int(used.sum())))
+        deficits = ((learned.template(el)[0] - snr) / learned.template(el)[1])[used]
+        counted = deficits if harmful or not suspects.any() else deficits[~suspects]
+        largest = counted.max() if counted.size else 0.0
+        assert verdict.statistic == pytest.approx(largest * learned.gate / per_satellite_gate(learned.gate, int(used.sum())))
 
 
 def test_bad_reports_are_skipped_with_a_reason(learned):

@@ -95,6 +95,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Hashable
+from functools import lru_cache
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -312,9 +313,11 @@ class Cn0Params(BaseModel):
         return self
 
 
+@lru_cache(maxsize=256)
 def per_satellite_gate(gate_sigma: float, n: int) -> float:
     """The level, in sigma, each of a fix's n used satellites is tested at so that a fix whose n signals are all direct
-    exceeds it somewhere with the probability one Gaussian jitter exceeds gate_sigma (Sidak 1967): 1 - (1 - p)^n = p_gate."""
+    exceeds it somewhere with the probability one Gaussian jitter exceeds gate_sigma (Sidak 1967): 1 - (1 - p)^n = p_gate.
+    Kept per (gate, n): every fix asks it, and a receiver uses a few dozen satellite counts at most."""
     if n <= 1:
         return gate_sigma
     return float(norm.isf(-math.expm1(math.log1p(-float(norm.sf(gate_sigma))) / n)))
